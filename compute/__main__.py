@@ -1,0 +1,31 @@
+"""``python -m compute SCENE_DIR --out OUT_DIR [--resume]``: run a scene."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from compute.errors import SceneError, SimulationError
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m compute", description=__doc__)
+    p.add_argument("scene", help="scene folder written by pre (scene.toml + bodies file)")
+    p.add_argument("--out", required=True, help="output folder (frames, history, checkpoints)")
+    p.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
+    a = p.parse_args(argv)
+    from compute.run import run
+
+    try:
+        run(a.scene, a.out, resume=a.resume)
+    except SceneError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except SimulationError as exc:
+        print(f"simulation failed: {exc}", file=sys.stderr)
+        return 3
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

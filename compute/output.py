@@ -1,0 +1,135 @@
+"""Output folder: VTK frames (bodies, contacts, walls), .pvd collections, frames.csv, history.csv.
+
+See docs/FORMATS.md. Frames are written atomically (temporary file, then rename) so that a run
+killed mid-write leaves only complete frames; the .pvd files are regenerated from frames.csv.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+
+import numpy as np
+
+from compute.contact_geometry import Contacts
+
+FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
+                 "xmin", "xmax", "ymin", "ymax"]
+HISTORY_COLUMNS = ["time", "step", "stage", "pressure_applied", "xmin", "xmax", "ymin", "ymax", "phi",
+                   "nlgs_sweeps", "nlgs_residual", "kinetic_energy", "inertial_number", "n_contacts",
+                   "max_penetration"]
+SERIES = ("bodies", "contacts", "walls")
+
+
+def _atomic_write_mesh(path: Path, mesh) -> None:
+    import meshio
+
+    tmp = path.with_name(path.stem + ".tmp.vtu")
+    meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=None)
+    os.replace(tmp, path)
+
+
+def frame_path(out: Path, series: str, frame: int) -> Path:
+    return out / "frames" / f"{series}_{frame:05d}.vtu"
+
+
+def write_contacts(path: Path, contacts: Contacts, centres_i: np.ndarray, centres_j: np.ndarray,
+                   time_step: float) -> None:
+    """Active contacts (r_n > 0) as lines from centre i to centre j (or the wall contact point).
+
+    centres_i, centres_j (nc, 2): the end points of each contact's line; forces = impulses / h.
+    """
+    import meshio
+
+    act = contacts.impulse[:, 0] > 0.0
+    n = int(act.sum())
+    z = np.zeros((n, 1))
+    pts = np.concatenate([np.hstack([centres_i[act], z]), np.hstack([centres_j[act], z])])
+    lines = np.column_stack([np.arange(n), n + np.arange(n)])
+    nrm = contacts.normal[act]
+    tan = np.column_stack([-nrm[:, 1], nrm[:, 0]])
+    fn, ft = contacts.impulse[act, 0] / time_step, contacts.impulse[act, 1] / time_step
+    force = fn[:, None] * nrm + ft[:, None] * tan
+    data = {
+        "body_i": contacts.body_i[act], "body_j": contacts.body_j[act],
+        "normal": np.hstack([nrm, z]), "force": np.hstack([force, z]), "fn": fn, "ft": ft,
+        "gap": contacts.gap[act], "branch": np.hstack([contacts.branch[act], z]),
+        "contact_point": np.hstack([contacts.point[act], z]),
+    }
+    _atomic_write_mesh(path, meshio.Mesh(pts, [("line", lines)], cell_data={k: [v] for k, v in data.items()}))
+
+
+def write_walls(path: Path, bounds: np.ndarray, force: np.ndarray, pressure: float,
+                velocity: np.ndarray) -> None:
+    """The four walls as lines; ``force`` (4,) the normal force particles exert on each wall."""
+    import meshio
+
+    x0, x1, y0, y1 = bounds
+    pts = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0]], float)
+    lines = np.array([[3, 0], [1, 2], [0, 1], [2, 3]])  # left, right, bottom, top
+    lengths = np.array([y1 - y0, y1 - y0, x1 - x0, x1 - x0])
+    data = {"wall": np.array([-1, -2, -3, -4]), "position": np.asarray(bounds, float), "length": lengths,
+            "force": np.asarray(force, float), "pressure_applied": np.full(4, pressure),
+            "velocity": np.asarray(velocity, float)}
+    _atomic_write_mesh(path, meshio.Mesh(pts, [("line", lines)], cell_data={k: [v] for k, v in data.items()}))
+
+
+def write_pvd(out: Path, rows: list[dict]) -> None:
+    """Regenerate the three .pvd collections from the frame rows."""
+    for series in SERIES:
+        lines = ['<?xml version="1.0"?>',
+                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
+        for r in rows:
+            f = int(r["frame"])
+            lines.append(f'    <DataSet timestep="{float(r["time"])!r}" group="" part="0" '
+                         f'file="frames/{series}_{f:05d}.vtu"/>')
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        tmp = out / f"{series}.pvd.tmp"
+        tmp.write_text("\n".join(lines))
+        os.replace(tmp, out / f"{series}.pvd")
+
+
+def read_csv_rows(path: Path) -> list[dict]:
+    if not path.is_file():
+        return []
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def write_csv_rows(path: Path, columns: list[str], rows: list[dict]) -> None:
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns)
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(tmp, path)
+
+
+class History:
+    """Per-step history rows, appended to ``history.csv`` and flushed at checkpoints."""
+
+    def __init__(self, path: Path, resume_step: int | None):
+        self.path = path
+        if resume_step is None or not path.is_file():
+            with open(path, "w", newline="") as fh:
+                csv.writer(fh).writerow(HISTORY_COLUMNS)
+        else:  # drop rows written after the checkpoint we resume from
+            rows = [r for r in read_csv_rows(path) if int(r["step"]) <= resume_step]
+            write_csv_rows(path, HISTORY_COLUMNS, rows)
+        self.fh = open(path, "a", newline="")
+        self.writer = csv.writer(self.fh)
+
+    def append(self, row: dict) -> None:
+        self.writer.writerow([_fmt(row[k]) for k in HISTORY_COLUMNS])
+
+    def flush(self) -> None:
+        self.fh.flush()
+        os.fsync(self.fh.fileno())
+
+    def close(self) -> None:
+        self.fh.close()
+
+
+def _fmt(x) -> str:
+    return repr(float(x)) if isinstance(x, (float, np.floating)) else str(x)

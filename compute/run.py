@@ -1,0 +1,176 @@
+"""The loading program: pressure stages, each run until equilibrium, with frames and checkpoints.
+
+A stage ends when, between two checks ``check_every`` steps apart, φ varies by less than
+``phi_tolerance`` (relative) and the inertial number is below ``inertial_tolerance``
+(:func:`compute.walls.inertial_number`). Its last state is written as an equilibrated frame.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from compute import output
+from compute.errors import SimulationError
+from compute.model import Model
+from compute.scene import read_scene
+from compute.state import State
+from compute.stepper import Stepper
+from compute.walls import inertial_number
+
+CHECKPOINT = "checkpoint/state.npz"
+
+
+class Run:
+    """A run of a scene into an output folder; ``execute`` does the whole loading program."""
+
+    def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None):
+        self.scene = read_scene(scene_dir)
+        self.out = Path(out_dir)
+        self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+        self.model = build_model(self.scene)
+        self.stepper = Stepper(self.model)
+        self.state = self._start(resume)
+        self.history = output.History(self.out / "history.csv", self.state.step if resume else None)
+
+    # --- set-up ------------------------------------------------------------------------
+    def _start(self, resume: bool) -> State:
+        (self.out / "frames").mkdir(parents=True, exist_ok=True)
+        (self.out / "checkpoint").mkdir(exist_ok=True)
+        ckpt = self.out / CHECKPOINT
+        if resume and ckpt.is_file():
+            with np.load(ckpt) as data:
+                state = State.from_arrays(dict(data))
+            rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
+            for f in (self.out / "frames").glob("*.vtu"):
+                if int(f.stem.rsplit("_", 1)[1]) >= state.frame:
+                    f.unlink()
+            output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
+            output.write_pvd(self.out, rows)
+            self.log(f"resuming from step {state.step}, stage {state.stage}, frame {state.frame}")
+            return state
+        if resume:
+            self.log(f"no checkpoint in {self.out}: starting from the scene")
+        for f in (self.out / "frames").glob("*.vtu"):
+            f.unlink()
+        for name in ("frames.csv", CHECKPOINT, "FAILED"):
+            (self.out / name).unlink(missing_ok=True)
+        shutil.copy(self.scene.path / "scene.toml", self.out / "scene.toml")
+        output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, [])
+        return self.model.initial_state()
+
+    # --- the program -------------------------------------------------------------------
+    def execute(self) -> State:
+        """Run all remaining stages; on a numerical failure keep what was written and re-raise."""
+        try:
+            if self.scene.walls.control == "velocity":
+                self._velocity_stage()
+            else:
+                while self.state.stage < len(self.scene.loading.pressures):
+                    self._pressure_stage(self.scene.loading.pressures[self.state.stage])
+            self.checkpoint()
+        except SimulationError as exc:
+            self.history.flush()
+            (self.out / "FAILED").write_text(f"{exc}\n")
+            self.log(f"run stopped: {exc}")
+            raise
+        finally:
+            self.history.close()
+        return self.state
+
+    def _pressure_stage(self, pressure: float) -> None:
+        load, st = self.scene.loading, self.state
+        while True:
+            self._advance(pressure)
+            if st.stage_steps % load.check_every == 0 and self._equilibrated(pressure):
+                self.write_frame(pressure, equilibrated=True)
+                self.log(f"stage {st.stage} (P = {pressure:.4g}) equilibrated at step {st.step}: "
+                         f"phi = {self.model.phi(st.q):.6f}")
+                break
+            if st.stage_steps >= load.max_steps_per_stage:
+                self.write_frame(pressure, equilibrated=False)
+                self.log(f"stage {st.stage} (P = {pressure:.4g}) NOT equilibrated after "
+                         f"{st.stage_steps} steps; frame written with equilibrated = 0")
+                break
+        st.stage += 1
+        st.stage_steps = 0
+        st.phi_check = np.nan
+        self.checkpoint()
+
+    def _velocity_stage(self) -> None:
+        load, st = self.scene.loading, self.state
+        n = int(round(load.duration / self.scene.solver.time_step))
+        while st.stage_steps < n:
+            self._advance(0.0, load.velocity)
+        self.write_frame(0.0, equilibrated=False)
+        st.stage = 1
+
+    def _advance(self, pressure: float, wall_speed: float = 0.0) -> None:
+        st = self.state
+        rep = self.stepper.step(st, pressure, wall_speed)
+        st.stage_steps += 1
+        b = self.model.bounds(st.q)
+        self.history.append(dict(
+            time=st.time, step=st.step, stage=st.stage, pressure_applied=pressure,
+            xmin=b[0], xmax=b[1], ymin=b[2], ymax=b[3], phi=self.model.phi(st.q), nlgs_sweeps=rep.sweeps,
+            nlgs_residual=rep.residual, kinetic_energy=self.model.kinetic_energy(st.v),
+            inertial_number=self._inertial(pressure), n_contacts=rep.n_contacts,
+            max_penetration=rep.max_penetration))
+        out = self.scene.output
+        if out.every_steps and st.step % out.every_steps == 0:
+            self.write_frame(pressure, equilibrated=False)
+        if st.step % out.checkpoint_every_steps == 0:
+            self.checkpoint()
+
+    def _inertial(self, pressure: float) -> float:
+        m = self.model
+        return inertial_number(m.bounds(self.state.q), m.wall_velocity(self.state.v), pressure, m.density, m.diameter)
+
+    def _equilibrated(self, pressure: float) -> bool:
+        st, load = self.state, self.scene.loading
+        phi = self.model.phi(st.q)
+        ok = abs(phi - st.phi_check) < load.phi_tolerance * phi and self._inertial(pressure) < load.inertial_tolerance
+        st.phi_check = phi
+        return bool(ok)
+
+    # --- files ---------------------------------------------------------------------------
+    def write_frame(self, pressure: float, equilibrated: bool) -> None:
+        """Write bodies, contacts and walls of the current state as frame ``state.frame``."""
+        from compute.frames import write_frame_files
+
+        st = self.state
+        write_frame_files(self.out, st.frame, self.model, st, self.scene.solver.time_step, pressure)
+        b = self.model.bounds(st.q)
+        rows = output.read_csv_rows(self.out / "frames.csv")
+        rows.append(dict(frame=st.frame, time=repr(st.time), step=st.step, stage=st.stage,
+                         pressure_applied=repr(float(pressure)), equilibrated=int(equilibrated),
+                         xmin=repr(float(b[0])), xmax=repr(float(b[1])), ymin=repr(float(b[2])), ymax=repr(float(b[3]))))
+        output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
+        output.write_pvd(self.out, rows)
+        st.frame += 1
+
+    def checkpoint(self) -> None:
+        """Save the state atomically (after flushing the history up to this step)."""
+        self.history.flush()
+        path = self.out / CHECKPOINT
+        tmp = path.with_name("state.tmp.npz")
+        np.savez(tmp, **self.state.to_arrays())
+        os.replace(tmp, path)
+
+
+def build_model(scene) -> Model:
+    """The model of a scene (rigid disks and walls; deformable bodies when the scene has them)."""
+    if scene.deformable:
+        from compute.deformable import DeformableModel
+
+        return DeformableModel(scene)
+    return Model(scene)
+
+
+def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None) -> State:
+    """Run the scene in ``scene_dir`` and write frames, history and checkpoints in ``out_dir``."""
+    return Run(scene_dir, out_dir, resume=resume, log=log).execute()

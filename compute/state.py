@@ -1,0 +1,79 @@
+"""The mechanical state of a run and the dof layout of its bodies.
+
+Generalised coordinates q and velocities v (n_dofs,) are laid out as
+``[rigid disk k: x, y, rotation]*nr + [wall 0..3 position] + [deformable nodes: x, y]*nn``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each body's dofs live in q and v."""
+
+    n_rigid: int
+    node_offsets: tuple[int, ...] = ()  # first dof of each deformable body's nodes
+    node_counts: tuple[int, ...] = ()
+
+    @property
+    def wall_dof0(self) -> int:
+        return 3 * self.n_rigid
+
+    @property
+    def n_dofs(self) -> int:
+        return 3 * self.n_rigid + 4 + 2 * sum(self.node_counts)
+
+    def rigid_dof0(self) -> np.ndarray:
+        return 3 * np.arange(self.n_rigid, dtype=np.int64)
+
+    def body_dofs(self, k: int) -> slice:
+        """Dofs of deformable body k (its nodes' x, y interleaved)."""
+        o = self.node_offsets[k]
+        return slice(o, o + 2 * self.node_counts[k])
+
+
+@dataclass
+class State:
+    """Everything a step reads and writes; a checkpoint saves exactly this.
+
+    ``q``, ``v`` (n_dofs,); ``stage`` index into the loading program; ``stage_steps`` steps
+    done in the current stage; ``phi_check`` φ at the last equilibrium check; ``frame`` the
+    number of frames written; the contact memory (Verlet list and last impulses) is kept in
+    ``pairs``/``impulses`` per contact family and ``q_detect`` (positions at detection).
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    time: float = 0.0
+    step: int = 0
+    stage: int = 0
+    stage_steps: int = 0
+    phi_check: float = np.nan
+    frame: int = 0
+    q_detect: np.ndarray | None = None
+    pairs: dict[str, np.ndarray] = field(default_factory=dict)
+    impulses: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        out = {"q": self.q, "v": self.v,
+               "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.phi_check, self.frame])}
+        if self.q_detect is not None:
+            out["q_detect"] = self.q_detect
+        for k, a in self.pairs.items():
+            out["pairs_" + k] = a
+            out["impulses_" + k] = self.impulses[k]
+        return out
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, np.ndarray]) -> "State":
+        t, step, stage, stage_steps, phi_check, frame = a["scalars"]
+        families = [k[len("pairs_"):] for k in a if k.startswith("pairs_")]
+        return cls(q=a["q"].copy(), v=a["v"].copy(), time=float(t), step=int(step), stage=int(stage),
+                   stage_steps=int(stage_steps), phi_check=float(phi_check), frame=int(frame),
+                   q_detect=a["q_detect"].copy() if "q_detect" in a else None,
+                   pairs={k: a["pairs_" + k].copy() for k in families},
+                   impulses={k: a["impulses_" + k].copy() for k in families})

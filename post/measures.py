@@ -1,0 +1,176 @@
+"""Measures of a packing frame: pure functions on arrays (DESIGN.md, "Measures").
+
+Definitions (N_p particles, walls are not particles):
+
+- Packing fraction phi = V_p / V: V_p the sum of the current particle areas (pi r^2 for a rigid
+  disk; for a deformable disk the sum of its current element areas, T6 elements with their curved
+  edges), V the area of the box bounded by the four walls.
+- Active contact: a contact candidate with fn > threshold x mean(fn of the candidates with fn > 0),
+  threshold 1e-9 by default. Several candidates between the same two bodies (node-to-segment
+  contacts of a deformable body) make one contact: contacts are counted per *pair* of bodies,
+  a particle and a wall being a pair.
+- z_i, the number of contacts of particle i, counts its contacts with particles and with walls.
+- Rattlers: particles with z_i < min_contacts, removed iteratively (removing one lowers the z of
+  its neighbours) until none is left. Usual choices: min_contacts = 2 with friction, 3 without
+  (d + 1 in d = 2); it is a parameter, post does not read the friction from the scene.
+- Coordination numbers, N_pp particle-particle and N_pw particle-wall contacts:
+    Z             = (2 N_pp + N_pw) / N_p = <z_i>  over all particles; written 2 N_c / N_p, a wall
+                    contact is half a contact (it has one particle end), so that a square lattice
+                    in a box has Z = 4 exactly;
+    Z_no_rattlers = the same over the non-rattlers and the contacts between them or with walls;
+    Z_bulk        = 2 N_pp / N_p, particle-particle contacts only, all particles.
+- Granular stress sigma_ij = (1/V) sum_c f_i^c l_j^c (Love-Weber, paper Sec. 3 before Eq. 1),
+  compression positive, over all candidates, wall contacts included with
+  l = contact point - centre: it then equals the stress the walls carry at equilibrium.
+  P = (sigma_1 + sigma_2)/2 (the mean stress of Eq. 1), q = (sigma_1 - sigma_2)/2.
+- P_walls = mean over the four walls of force / length.
+- Bulk modulus K = dP/d eps_v with eps_v = -ln(phi_0/phi), i.e. K = phi dP/dphi (paper Sec. 2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Quadrature on the reference triangle {xi, eta >= 0, xi + eta <= 1}: (points (q, 2), weights (q,)).
+# One point suffices for T3 (det J constant); three points are exact for the quadratic det J of T6.
+_QUADRATURE = {
+    3: (np.array([[1 / 3, 1 / 3]]), np.array([0.5])),
+    6: (np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]]), np.full(3, 1 / 6)),
+}
+
+
+def _shape_gradients(nodes: int, xi: np.ndarray) -> np.ndarray:
+    """Reference gradients dN_k/d(xi, eta) at the points xi (q, 2): shape (q, 2, nodes).
+
+    VTK node order: corners 0, 1, 2, then the mid-side nodes of edges 01, 12, 20 (T6).
+    """
+    x, y = xi[:, 0], xi[:, 1]
+    if nodes == 3:
+        return np.broadcast_to(np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]]), (len(xi), 2, 3))
+    l1, l2, l3 = 1 - x - y, x, y  # barycentric coordinates; d(l1, l2, l3)/dxi = (-1, 1, 0), /deta = (-1, 0, 1)
+    zero = np.zeros_like(x)
+    d_xi = [1 - 4 * l1, 4 * l2 - 1, zero, 4 * (l1 - l2), 4 * l3, -4 * l3]
+    d_eta = [1 - 4 * l1, zero, 4 * l3 - 1, -4 * l2, 4 * l2, 4 * (l1 - l3)]
+    return np.stack([np.stack(d_xi, axis=-1), np.stack(d_eta, axis=-1)], axis=1)
+
+
+def triangle_areas(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Current areas of T3 or T6 triangles, exactly: area = integral of |det J| over the
+    reference triangle (for T6 this is the area bounded by the three parabolic edges).
+
+    points (n_points, 2); cells (n_cells, 3 | 6) in VTK node order. Returns (n_cells,).
+    """
+    xi, weights = _QUADRATURE[cells.shape[1]]
+    gradients = _shape_gradients(cells.shape[1], xi)            # (q, 2, nodes)
+    jacobian = np.einsum("qak,ekd->eqad", gradients, points[cells])  # (cells, q, 2, 2): dx_d/dxi_a
+    det = jacobian[..., 0, 0] * jacobian[..., 1, 1] - jacobian[..., 0, 1] * jacobian[..., 1, 0]
+    return np.abs(det @ weights)
+
+
+def particle_areas(radius: np.ndarray, rigid: np.ndarray, points: np.ndarray,
+                   meshes: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Current area of each body: pi r^2 for a rigid disk, the sum of its element areas otherwise.
+
+    radius (N,) nominal radii; rigid (N,) bool; points (n_points, 2); meshes a list of
+    (cells (n_cells, 3 | 6), body (n_cells,)). Returns (N,).
+    """
+    area = np.where(rigid, np.pi * radius**2, 0.0)
+    for cells, body in meshes:
+        area += np.bincount(body, weights=triangle_areas(points, cells), minlength=len(radius))
+    return area
+
+
+def box_area(wall_position: np.ndarray) -> float:
+    """Area of the box from the wall positions (4,) ordered left, right, bottom, top."""
+    left, right, bottom, top = wall_position
+    return float((right - left) * (top - bottom))
+
+
+def packing_fraction(areas: np.ndarray, volume: float) -> float:
+    """phi = V_p / V: areas (N,) of the particles, volume the box area."""
+    return float(areas.sum() / volume)
+
+
+def active_contacts(fn: np.ndarray, threshold: float = 1e-9) -> np.ndarray:
+    """Mask (M,) of the candidates with fn > threshold x the mean of the positive fn (M,)."""
+    positive = fn[fn > 0]
+    if len(positive) == 0:
+        return np.zeros(len(fn), dtype=bool)
+    return fn > threshold * positive.mean()
+
+
+def contact_pairs(body_i: np.ndarray, body_j: np.ndarray) -> np.ndarray:
+    """Distinct unordered pairs of bodies in contact, (K, 2) int sorted per row, from the body
+    ids (M,) of the active candidates; a wall (negative id) comes first in its row."""
+    return np.unique(np.sort(np.stack([body_i, body_j], axis=1), axis=1), axis=0).reshape(-1, 2)
+
+
+def contacts_per_particle(pairs: np.ndarray, n_bodies: int) -> np.ndarray:
+    """z_i (N,): number of contacts of each particle, walls included, from pairs (K, 2)."""
+    ends = pairs.ravel()
+    return np.bincount(ends[ends >= 0], minlength=n_bodies)
+
+
+def _pairs_among(pairs: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The pairs (K, 2) whose particle ends are all in the mask keep (N,)."""
+    return pairs[np.all((pairs < 0) | keep[np.maximum(pairs, 0)], axis=1)]
+
+
+def default_min_contacts(friction: float) -> int:
+    """Rattler threshold: 2 contacts with friction, 3 (= d + 1) for frictionless disks."""
+    return 2 if friction > 0 else 3
+
+
+def rattlers(pairs: np.ndarray, n_bodies: int, min_contacts: int) -> np.ndarray:
+    """Mask (N,) of the rattlers: particles left with fewer than min_contacts contacts (walls
+    counting) once the rattlers are removed, found by iterated removal. pairs (K, 2)."""
+    rattler = np.zeros(n_bodies, dtype=bool)
+    while True:
+        z = contacts_per_particle(_pairs_among(pairs, ~rattler), n_bodies)
+        new = (z < min_contacts) & ~rattler
+        if not new.any():
+            return rattler
+        rattler |= new
+
+
+def coordination(pairs: np.ndarray, particles: np.ndarray, walls: bool = True) -> float:
+    """Mean number of contacts <z_i> over the particles of the mask (N,), counting only the
+    contacts between them (and with walls if walls): (2 N_pp + N_pw) / N_p. pairs (K, 2)."""
+    kept = _pairs_among(pairs, particles)
+    if not walls:
+        kept = kept[kept[:, 0] >= 0]
+    n_particles = int(particles.sum())
+    return float(contacts_per_particle(kept, len(particles)).sum() / n_particles) if n_particles else np.nan
+
+
+def granular_stress(force: np.ndarray, branch: np.ndarray, volume: float) -> np.ndarray:
+    """sigma_ij = (1/V) sum_c f_i l_j (compression positive): force, branch (M, 2) -> (2, 2)."""
+    return force.T @ branch / volume
+
+
+def stress_invariants(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Principal stresses sigma_1 >= sigma_2 of the symmetric part of sigma (..., 2, 2), and
+    P = (sigma_1 + sigma_2)/2 (Eq. 1), q = (sigma_1 - sigma_2)/2. Returns (P, q, sigma_1, sigma_2)."""
+    eig = np.linalg.eigvalsh(0.5 * (sigma + np.swapaxes(sigma, -1, -2)))
+    sigma_2, sigma_1 = eig[..., 0], eig[..., 1]
+    return 0.5 * (sigma_1 + sigma_2), 0.5 * (sigma_1 - sigma_2), sigma_1, sigma_2
+
+
+def wall_pressure(force: np.ndarray, length: np.ndarray) -> float:
+    """P_walls: mean over the walls of normal force / length; force, length (4,)."""
+    return float(np.mean(force / length))
+
+
+def bulk_modulus(phi: np.ndarray, pressure: np.ndarray) -> np.ndarray:
+    """K = dP/d eps_v = phi dP/dphi (eps_v = -ln(phi_0/phi)), by centred differences (np.gradient,
+    second order on uneven spacing; one-sided at both ends) along a compaction curve.
+
+    phi, pressure (n,), phi strictly increasing (n >= 2), e.g. the equilibrated stages. Returns (n,).
+    Noise: an error delta on each phi gives a relative error ~ delta / dphi on K, dphi the spacing
+    between stages. Stages equilibrated to a relative phi variation of 1e-4 make K meaningful only
+    while dphi >> 1e-4 phi; near phi_max, where dphi shrinks as P grows, K becomes noisy.
+    """
+    phi, pressure = np.asarray(phi, dtype=float), np.asarray(pressure, dtype=float)
+    if len(phi) < 2 or np.any(np.diff(phi) <= 0):
+        raise ValueError("bulk_modulus needs at least 2 points with strictly increasing phi")
+    return phi * np.gradient(pressure, phi)

@@ -1,0 +1,105 @@
+"""The table of measures of an output folder: one row per frame (``OUT_DIR/post/measures.csv``).
+
+Columns (definitions in :mod:`post.measures`):
+
+- ``frame, time, step, stage, pressure_applied, equilibrated``: copied from frames.csv;
+- ``volume`` box area V; ``phi`` packing fraction;
+- ``P, q, sigma_xx, sigma_yy, sigma_xy``: granular stress from the contacts (symmetric part);
+- ``P_walls`` mean wall force / length; ``P_rel_diff`` = P / P_walls - 1, the equilibrium check
+  (contacts against walls; ~0 on equilibrated frames);
+- ``Z, Z_no_rattlers, Z_bulk`` coordination numbers;
+- ``n_contacts`` active contacts (pairs of bodies, walls included), ``n_wall_contacts`` those with
+  a wall, ``n_rattlers``, ``n_particles``;
+- ``K`` = phi dP/dphi by centred differences over the equilibrated frames; NaN on the other
+  frames, and on all when fewer than two frames are equilibrated or phi does not increase
+  strictly from one equilibrated frame to the next.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from post import measures
+from post.frames import Frame, iter_frames
+
+COLUMNS = ("frame", "time", "step", "stage", "pressure_applied", "equilibrated", "volume", "phi", "P", "P_walls",
+           "P_rel_diff", "q", "sigma_xx", "sigma_yy", "sigma_xy", "Z", "Z_no_rattlers", "Z_bulk", "n_contacts",
+           "n_wall_contacts", "n_rattlers", "n_particles", "K")
+
+Row = dict[str, float | int | bool]
+
+
+def measure_frame(frame: Frame, min_contacts: int = 2, threshold: float = 1e-9) -> Row:
+    """The measures of one frame (every column but K).
+
+    min_contacts: rattler threshold (see measures.default_min_contacts); threshold: active
+    contacts have fn > threshold x mean positive fn.
+    """
+    bodies, contacts, walls, record = frame.bodies, frame.contacts, frame.walls, frame.record
+    volume = measures.box_area(walls.position)
+    areas = measures.particle_areas(bodies.radius, bodies.rigid, bodies.points,
+                                    [(m.cells, m.body) for m in bodies.meshes])
+    active = measures.active_contacts(contacts.fn, threshold)
+    pairs = measures.contact_pairs(contacts.body_i[active], contacts.body_j[active])
+    rattler = measures.rattlers(pairs, bodies.n_bodies, min_contacts)
+    everyone = np.ones(bodies.n_bodies, dtype=bool)
+    sigma = measures.granular_stress(contacts.force, contacts.branch, volume)
+    P, q, _, _ = measures.stress_invariants(sigma)
+    P_walls = measures.wall_pressure(walls.force, walls.length)
+    return {
+        "frame": record.frame, "time": record.time, "step": record.step, "stage": record.stage,
+        "pressure_applied": record.pressure_applied, "equilibrated": record.equilibrated,
+        "volume": volume, "phi": measures.packing_fraction(areas, volume),
+        "P": float(P), "P_walls": P_walls, "P_rel_diff": float(P / P_walls - 1) if P_walls else np.nan,
+        "q": float(q), "sigma_xx": float(sigma[0, 0]), "sigma_yy": float(sigma[1, 1]),
+        "sigma_xy": float(0.5 * (sigma[0, 1] + sigma[1, 0])),
+        "Z": measures.coordination(pairs, everyone),
+        "Z_no_rattlers": measures.coordination(pairs, ~rattler),
+        "Z_bulk": measures.coordination(pairs, everyone, walls=False),
+        "n_contacts": len(pairs), "n_wall_contacts": int(np.sum(pairs[:, 0] < 0)),
+        "n_rattlers": int(rattler.sum()), "n_particles": bodies.n_bodies,
+    }
+
+
+def measure_output(out_dir: str | Path, min_contacts: int = 2, threshold: float = 1e-9) -> list[Row]:
+    """The table of measures of an output folder, one row (dict keyed by COLUMNS) per frame of
+    frames.csv, in its order. Reads the frames one at a time."""
+    rows = [measure_frame(frame, min_contacts, threshold) for frame in iter_frames(out_dir)]
+    equilibrated = [row for row in rows if row["equilibrated"]]
+    phi = np.array([row["phi"] for row in equilibrated])
+    try:
+        K = measures.bulk_modulus(phi, np.array([row["P"] for row in equilibrated]))
+    except ValueError:  # fewer than two stages, or phi not increasing: K undefined (documented)
+        K = np.full(len(equilibrated), np.nan)
+    for row in rows:
+        row["K"] = np.nan
+    for row, k in zip(equilibrated, K):
+        row["K"] = float(k)
+    return rows
+
+
+def write_measures(rows: Sequence[Row], path: str | Path) -> Path:
+    """Write rows as CSV with the header COLUMNS (booleans as 0/1, floats round-trip exact)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(COLUMNS)
+        for row in rows:
+            writer.writerow([_format(row[c]) for c in COLUMNS])
+    return path
+
+
+def _format(value: float | int | bool) -> str:
+    if isinstance(value, (bool, np.bool_, int, np.integer)):
+        return str(int(value))
+    return repr(float(value))
+
+
+def read_measures(path: str | Path) -> np.ndarray:
+    """Read a measures.csv as a numpy structured array (one field per column, shape (n_frames,))."""
+    return np.atleast_1d(np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8"))

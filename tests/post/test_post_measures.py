@@ -1,0 +1,140 @@
+"""Measures on arrays and on synthetic lattices with analytically known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from post import measures, models
+from post.frames import iter_frames
+from post.table import measure_frame, measure_output
+from tests.post.synthetic import RATTLER_RADIUS, disk_fan, fan_area
+
+
+def test_square_lattice_is_exact(lattice):
+    """Touching rigid disks, every contact fn = P d: sigma = P I, P = P_walls = P_applied,
+    Z = 4 walls counting, phi = pi/4."""
+    for frame in iter_frames(lattice):
+        P_applied = frame.record.pressure_applied
+        sigma = measures.granular_stress(frame.contacts.force, frame.contacts.branch,
+                                         measures.box_area(frame.walls.position))
+        np.testing.assert_allclose(sigma, P_applied * np.eye(2), rtol=1e-12, atol=1e-15)
+        row = measure_frame(frame)
+        assert row["P"] == pytest.approx(P_applied, rel=1e-12)
+        assert row["P_walls"] == pytest.approx(P_applied, rel=1e-12)
+        assert row["q"] == pytest.approx(0.0, abs=1e-12 * P_applied)
+        assert row["phi"] == pytest.approx(np.pi / 4, rel=1e-12)
+        assert row["Z"] == row["Z_no_rattlers"] == 4.0
+        assert row["Z_bulk"] == 2 * 24 / 16          # 2 N_pp / N_p without the 16 wall contacts
+        assert (row["n_contacts"], row["n_wall_contacts"], row["n_rattlers"]) == (40, 16, 0)
+
+
+def test_mixed_lattice_rattler_and_deformable_bodies(mixed_lattice):
+    """T6 disks whose contacts come as two candidates each, and a rattler with a zero-force candidate."""
+    rows = measure_output(mixed_lattice, min_contacts=3)
+    for row, spacing in zip(rows, (1.0, 0.99, 0.98, 0.97)):
+        areas = 14 * np.pi / 4 + 2 * fan_area(0.5, 16, "T6") + np.pi * RATTLER_RADIUS**2
+        assert row["phi"] == pytest.approx(areas / (4 * spacing) ** 2, rel=1e-12)
+        assert row["P"] == pytest.approx(row["pressure_applied"], rel=1e-12)
+        assert row["P_walls"] == pytest.approx(row["pressure_applied"], rel=1e-12)
+        assert row["n_rattlers"] == 1 and row["n_particles"] == 17
+        assert row["n_contacts"] == 40                       # split candidates count once per pair
+        assert row["Z_no_rattlers"] == 4.0
+        assert row["Z"] == pytest.approx(64 / 17)            # the rattler counts with z = 0
+        assert row["Z_bulk"] == pytest.approx(48 / 17)
+
+
+def test_bulk_modulus_column_uses_equilibrated_frames_only(mixed_lattice):
+    rows = measure_output(mixed_lattice)
+    equilibrated = [r for r in rows if r["equilibrated"]]
+    expected = measures.bulk_modulus(np.array([r["phi"] for r in equilibrated]),
+                                     np.array([r["P"] for r in equilibrated]))
+    np.testing.assert_allclose([r["K"] for r in equilibrated], expected)
+    assert np.isnan(rows[1]["K"])
+
+
+def test_bulk_modulus_column_is_nan_when_phi_does_not_increase(lattice):
+    assert all(np.isnan(row["K"]) for row in measure_output(lattice))
+
+
+def test_t6_area_of_a_curved_triangle_is_exact():
+    """Unit right triangle whose edge 01 bulges by h: area = 1/2 + 2/3 h (Archimedes)."""
+    h = 0.3
+    points = np.array([[0, 0], [1, 0], [0, 1], [0.5, -h], [0.5, 0.5], [0, 0.5]])
+    area = measures.triangle_areas(points, np.array([[0, 1, 2, 3, 4, 5], [0, 2, 1, 5, 4, 3]]))
+    np.testing.assert_allclose(area, 0.5 + 2 / 3 * h, rtol=1e-14)   # either orientation
+    np.testing.assert_allclose(measures.triangle_areas(points, np.array([[0, 1, 2]])), 0.5, rtol=1e-14)
+
+
+@pytest.mark.parametrize("sectors", [6, 12, 24, 48])
+def test_disk_meshed_by_hand(sectors):
+    """A fan mesh of the unit disk: T6 areas are exact for the parabolic edges and converge to pi
+    as sectors^-4, T3 (the inscribed polygon) as sectors^-2."""
+    for element, order in (("T3", 2), ("T6", 4)):
+        points, cells = disk_fan(np.array([2.0, -1.0]), 1.0, sectors, element)
+        area = measures.triangle_areas(points, cells).sum()
+        assert area == pytest.approx(fan_area(1.0, sectors, element), rel=1e-13)
+        assert abs(area - np.pi) < 25 * sectors**-order
+
+
+def test_particle_areas_of_rigid_and_deformable_bodies():
+    points, cells = disk_fan(np.zeros(2), 0.5, 32, "T6")
+    areas = measures.particle_areas(np.array([0.5, 0.5, 0.2]), np.array([False, True, True]), points,
+                                    [(cells, np.zeros(len(cells), int))])
+    np.testing.assert_allclose(areas, [fan_area(0.5, 32, "T6"), np.pi / 4, np.pi * 0.04])
+    assert areas[0] == pytest.approx(np.pi / 4, rel=1e-5)
+
+
+def test_active_contacts_threshold_is_relative_to_the_mean_force():
+    fn = np.array([0.0, 1e-12, 1.0, 2.0, 3.0])
+    assert measures.active_contacts(fn).tolist() == [False, False, True, True, True]
+    assert measures.active_contacts(fn, threshold=0.7).tolist() == [False, False, False, True, True]
+    assert not measures.active_contacts(np.zeros(3)).any()
+
+
+def test_rattler_removal_cascades():
+    """0 touches only 1; 1 touches 0 and 2; 2, 3, 4 form a triangle, each also touching a wall;
+    5 touches nothing. With min_contacts = 2, removing 0 leaves 1 with one contact: it goes too."""
+    pairs = measures.contact_pairs(np.array([1, 1, 2, 3, 4, 2, 3, 4]), np.array([0, 2, 3, 4, 2, -1, -3, -4]))
+    assert measures.contacts_per_particle(pairs, 6).tolist() == [1, 2, 4, 3, 3, 0]
+    assert measures.rattlers(pairs, 6, min_contacts=2).tolist() == [True, True, False, False, False, True]
+    # frictionless criterion: 2 keeps 3 contacts once 1 is removed, the triangle stays
+    assert measures.rattlers(pairs, 6, min_contacts=3).tolist() == [True, True, False, False, False, True]
+    # 2, 3, 4 lose one contact each in turn: everything goes
+    assert measures.rattlers(pairs, 6, min_contacts=4).all()
+
+
+def test_contact_pairs_merge_candidates_of_the_same_pair():
+    pairs = measures.contact_pairs(np.array([0, 1, 0, 2, 2]), np.array([1, 0, -2, -2, -2]))
+    assert pairs.tolist() == [[-2, 0], [-2, 2], [0, 1]]
+    every = np.ones(3, dtype=bool)
+    assert measures.coordination(pairs, every) == pytest.approx(4 / 3)       # (2 x 1 + 2) / 3
+    assert measures.coordination(pairs, every, walls=False) == pytest.approx(2 / 3)
+    assert measures.coordination(pairs, np.array([True, False, True])) == pytest.approx(1.0)
+
+
+def test_stress_invariants_of_a_rotated_tensor():
+    c, s = np.cos(0.3), np.sin(0.3)
+    rotation = np.array([[c, -s], [s, c]])
+    sigma = rotation @ np.diag([3.0, 1.0]) @ rotation.T
+    P, q, sigma_1, sigma_2 = measures.stress_invariants(np.stack([sigma, 2 * sigma]))
+    np.testing.assert_allclose(P, [2, 4])
+    np.testing.assert_allclose(q, [1, 2])
+    np.testing.assert_allclose(sigma_1, [3, 6])
+    np.testing.assert_allclose(sigma_2, [1, 2])
+
+
+def test_bulk_modulus_of_the_platzer_law():
+    """K = phi dP/dphi by centred differences against the analytic P0 phi / (phi_max - phi)."""
+    phi = np.linspace(0.80, 0.90, 201)
+    P = models.platzer_pressure(phi, 0.05, 0.93, 0.80)
+    K = measures.bulk_modulus(phi, P)
+    exact = models.log_compaction_modulus(phi, 0.05, 0.93)
+    np.testing.assert_allclose(K[1:-1], exact[1:-1], rtol=1e-4)
+    np.testing.assert_allclose(K[[0, -1]], exact[[0, -1]], rtol=1e-2)   # one-sided at the ends
+    with pytest.raises(ValueError):
+        measures.bulk_modulus(phi[::-1], P[::-1])
+
+
+def test_default_min_contacts():
+    assert measures.default_min_contacts(0.2) == 2 and measures.default_min_contacts(0.0) == 3
