@@ -35,6 +35,12 @@ class Model:
         self.density = float(np.mean(densities))
         self.has_friction = bool(np.any(self.friction > 0.0))
 
+    def make_stepper(self):
+        """The time stepper for this model."""
+        from compute.stepper import Stepper
+
+        return Stepper(self)
+
     # --- state -------------------------------------------------------------------------
     def initial_state(self) -> State:
         n = self.layout.n_dofs

@@ -19,7 +19,6 @@ from compute.errors import SimulationError
 from compute.model import Model
 from compute.scene import read_scene
 from compute.state import State
-from compute.stepper import Stepper
 from compute.walls import inertial_number
 
 CHECKPOINT = "checkpoint/state.npz"
@@ -33,7 +32,7 @@ class Run:
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
-        self.stepper = Stepper(self.model)
+        self.stepper = self.model.make_stepper()
         self.state = self._start(resume)
         self.history = output.History(self.out / "history.csv", self.state.step if resume else None)
 
