@@ -20,14 +20,15 @@ OVERLAP_TOLERANCE = 1e-9  # relative to the smaller radius
 
 def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
     """Read and validate ``path``; return the body arrays of :class:`compute.scene.Scene`."""
-    import meshio
+    from meshio import vtu  # not meshio.read, which prints and calls sys.exit on a corrupt file
+
     from compute.scene import DeformableBody
 
     path = Path(path)
     if not path.is_file():
         raise SceneError(path, "<file>", "an existing VTU bodies file")
     try:
-        mesh = meshio.read(path, file_format="vtu")
+        mesh = vtu.read(path)
     except Exception as exc:  # meshio raises many types on truncated / corrupt XML
         raise SceneError(path, "<file>", "a complete, readable VTU file", f"{type(exc).__name__}: {exc}") from None
     points = np.asarray(mesh.points, dtype=float)[:, :2]

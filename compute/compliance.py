@@ -18,11 +18,13 @@ import numpy as np
 class Compliance:
     """Block-diagonal M̂⁻¹ over ``n_dofs`` dofs.
 
-    ``block`` (n_dofs,) block of each dof (-1: dof not seen by contacts), ``pos`` (n_dofs,) its
-    position in the block, ``start`` (n_blocks + 1,) offsets into ``dofs``, ``dofs`` the dofs of
-    every block, ``offset`` (n_blocks + 1,) offsets into ``values``, the row-major block entries.
+    ``diagonal`` (n_dofs,) the 1x1 blocks (0 for dofs in a dense block or not seen by contacts);
+    ``block`` (n_dofs,) dense block of each dof (-1: none), ``pos`` (n_dofs,) its position in
+    the block, ``start`` (n_blocks + 1,) offsets into ``dofs``, ``dofs`` the dofs of every dense
+    block, ``offset`` (n_blocks + 1,) offsets into ``values``, the row-major block entries.
     """
 
+    diagonal: np.ndarray
     block: np.ndarray
     pos: np.ndarray
     start: np.ndarray
@@ -34,29 +36,30 @@ class Compliance:
     def build(cls, n_dofs: int, diagonal_dofs: np.ndarray, diagonal: np.ndarray,
               dense: list[tuple[np.ndarray, np.ndarray]] = ()) -> "Compliance":
         """1x1 blocks ``diagonal`` (k,) on ``diagonal_dofs`` (k,), plus (dofs (m,), matrix (m, m)) blocks."""
+        diag = np.zeros(n_dofs)
+        diag[diagonal_dofs] = diagonal
         block = np.full(n_dofs, -1, np.int64)
         pos = np.zeros(n_dofs, np.int64)
-        k = len(diagonal_dofs)
-        block[diagonal_dofs] = np.arange(k)
-        sizes = [1] * k + [len(d) for d, _ in dense]
+        sizes = [len(d) for d, _ in dense]
         start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         offset = np.concatenate([[0], np.cumsum(np.square(sizes))]).astype(np.int64)
-        dofs = np.concatenate([np.asarray(diagonal_dofs, np.int64)] + [np.asarray(d, np.int64) for d, _ in dense])
-        values = np.concatenate([np.asarray(diagonal, float)] + [np.asarray(m, float).ravel() for _, m in dense])
-        for b, (d, _) in enumerate(dense, start=k):
+        dofs = np.concatenate([np.zeros(0, np.int64)] + [np.asarray(d, np.int64) for d, _ in dense])
+        values = np.concatenate([np.zeros(0)] + [np.asarray(m, float).ravel() for _, m in dense])
+        for b, (d, _) in enumerate(dense):
             block[d] = b
             pos[d] = np.arange(len(d))
-        return cls(block, pos, start, dofs, offset, values)
+        return cls(diag, block, pos, start, dofs, offset, values)
 
     def arrays(self) -> tuple:
-        return self.block, self.pos, self.start, self.dofs, self.offset, self.values
+        return self.diagonal, self.block, self.pos, self.start, self.dofs, self.offset, self.values
 
 
-@numba.njit(cache=True, inline="always")
-def add_compliance(v, d, a, block, pos, start, dofs, offset, values):
+@numba.njit(cache=True)
+def add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values):
     """v += M̂⁻¹ e_d a: the velocity change of a generalised impulse ``a`` on dof ``d``."""
     b = block[d]
     if b < 0:
+        v[d] += diagonal[d] * a
         return
     s0 = start[b]
     size = start[b + 1] - s0
@@ -67,16 +70,21 @@ def add_compliance(v, d, a, block, pos, start, dofs, offset, values):
 
 
 @numba.njit(cache=True)
-def delassus_blocks(dof, hn, ht, block, pos, start, dofs, offset, values, W):
+def delassus_blocks(dof, hn, ht, diagonal, block, pos, start, dofs, offset, values, W):
     """W[c] = H_c^T M̂⁻¹ H_c, the (2, 2) local Delassus block of every contact c."""
     nc, m = dof.shape
     for c in range(nc):
         wnn = wnt = wtt = 0.0
         for k in range(m):
             dk = dof[c, k]
-            if dk < 0 or block[dk] < 0:
+            if dk < 0:
                 continue
             bk = block[dk]
+            if bk < 0:  # 1x1 block
+                wnn += hn[c, k] * diagonal[dk] * hn[c, k]
+                wnt += hn[c, k] * diagonal[dk] * ht[c, k]
+                wtt += ht[c, k] * diagonal[dk] * ht[c, k]
+                continue
             size = start[bk + 1] - start[bk]
             for l in range(m):
                 dl = dof[c, l]

@@ -26,6 +26,7 @@ class Model:
         rho = np.array([scene.materials[scene.material_names[m]].density for m in self.rigid_material])
         self.mass = rho * np.pi * self.radii**2
         self.inertia = 0.5 * self.mass * self.radii**2
+        self.fixed = np.array([scene.materials[scene.material_names[m]].fixed for m in self.rigid_material], bool)
         self.friction = scene.friction
         self.wall_mass = scene.walls.mass
         self.layout = Layout(n_rigid=len(self.rigid_ids))
@@ -104,6 +105,6 @@ class Model:
         f = np.zeros(self.layout.n_dofs)
         g = self.scene.loading.gravity
         r = self.rigid_view(f)
-        r[:, 0] = self.mass * g[0]
-        r[:, 1] = self.mass * g[1]
+        r[:, 0] = np.where(self.fixed, 0.0, self.mass * g[0])
+        r[:, 1] = np.where(self.fixed, 0.0, self.mass * g[1])
         return f

@@ -44,7 +44,7 @@ def local_signorini_coulomb(wnn, wnt, wtn, wtt, bn, bt, mu):
 
 
 @numba.njit(cache=True)
-def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, block, pos, start, dofs, offset, values,
+def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, dofs, offset, values,
                tol, max_sweeps, relax):
     """Solve the contact problem in place.
 
@@ -77,7 +77,11 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, block, pos, start, dofs, offs
                 for k in range(m):
                     d = dof[c, k]
                     if d >= 0:
-                        add_compliance(v, d, hn[c, k] * dn + ht[c, k] * dt, block, pos, start, dofs, offset, values)
+                        a = hn[c, k] * dn + ht[c, k] * dt
+                        if block[d] < 0:
+                            v[d] += diagonal[d] * a
+                        else:
+                            add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values)
             num += dn * dn + dt * dt
             den += rn * rn + rt * rt
         residual = np.sqrt(num / den) if den > 0.0 else 0.0
@@ -87,11 +91,12 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, block, pos, start, dofs, offs
 
 
 @numba.njit(cache=True)
-def apply_impulses(dof, hn, ht, r, v, block, pos, start, dofs, offset, values):
+def apply_impulses(dof, hn, ht, r, v, diagonal, block, pos, start, dofs, offset, values):
     """v += M̂⁻¹ H r (used for the warm start)."""
     nc, m = dof.shape
     for c in range(nc):
         for k in range(m):
             d = dof[c, k]
             if d >= 0:
-                add_compliance(v, d, hn[c, k] * r[c, 0] + ht[c, k] * r[c, 1], block, pos, start, dofs, offset, values)
+                add_compliance(v, d, hn[c, k] * r[c, 0] + ht[c, k] * r[c, 1], diagonal, block, pos, start, dofs,
+                               offset, values)

@@ -32,6 +32,7 @@ class Material:
     poisson: float = 0.0
     element: str = ""
     volumetric: str = ""
+    fixed: bool = False  # rigid only: a body that never moves (supports, obstacles)
 
 
 @dataclass(frozen=True)
@@ -210,7 +211,10 @@ def _read_materials(r: _Reader) -> dict[str, Material]:
         kind = r.choice(m, "kind", p, ("rigid", "neo_hookean"))
         density = r.number(m, "density", p, low=0.0, strict_low=True)
         if kind == "rigid":
-            out[name] = Material(name, kind, float(density))
+            fixed = m.get("fixed", False)
+            if not isinstance(fixed, bool):
+                raise SceneError(r.file, p + "fixed", "true or false", fixed)
+            out[name] = Material(name, kind, float(density), fixed=fixed)
             continue
         young = r.number(m, "young", p, low=0.0, strict_low=True)
         poisson = r.number(m, "poisson", p, low=-1.0, high=0.4999999, strict_low=True)
@@ -236,7 +240,8 @@ def _read_interactions(r: _Reader, names: list[str]) -> np.ndarray:
         pair = it.get("between") if isinstance(it, dict) else None
         if not (isinstance(pair, list) and len(pair) == 2 and all(x in index for x in pair)):
             raise SceneError(r.file, p + "between", f"two material names among {names}", pair)
-        mu = r.number(it, "friction", p, low=0.0)
+        law = r.choice(it, "law", p, ("coulomb", "frictionless"))
+        mu = r.number(it, "friction", p, low=0.0) if law == "coulomb" else 0.0
         a, b = index[pair[0]], index[pair[1]]
         if not np.isnan(friction[a, b]):
             raise SceneError(r.file, p + "between", "each pair of materials once", pair)

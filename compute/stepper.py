@@ -45,8 +45,9 @@ class Stepper:
         self.f_gravity = model.gravity_forces()
         lay = model.layout
         self.rigid_dofs = np.arange(3 * lay.n_rigid)
-        inv = np.column_stack([1 / model.mass, 1 / model.mass, 1 / model.inertia]).ravel()
-        self.rigid_inverse_mass = inv
+        inv = np.column_stack([1 / model.mass, 1 / model.mass, 1 / model.inertia])
+        inv[model.fixed] = 0.0  # fixed bodies: zero compliance, their velocity stays 0
+        self.rigid_inverse_mass = inv.ravel()
         self.wall_dofs = lay.wall_dof0 + np.arange(4)
 
     def step(self, state: State, pressure: float, wall_speed: float = 0.0) -> StepReport:

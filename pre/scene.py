@@ -32,13 +32,13 @@ def default_parameters(bounds: tuple[float, float, float, float], friction: floa
     return {
         "schema_version": SCHEMA_VERSION,
         "materials": {"rigid": {"kind": "rigid", "density": density}},
-        "interactions": [{"between": ["rigid", "rigid"], "friction": friction}],
+        "interactions": [{"between": ["rigid", "rigid"], "law": "coulomb", "friction": friction}],
         "walls": {"xmin": bounds[0], "xmax": bounds[1], "ymin": bounds[2], "ymax": bounds[3],
                   "mass": density * np.pi * mean_diameter**2 / 4 * width / mean_diameter,
                   "control": "pressure", "damping_inertial_number": 1e-3},
         "loading": {"pressures": list(pressures), "phi_tolerance": 1e-4, "inertial_tolerance": 1e-4,
                     "check_every": 20, "max_steps_per_stage": 200000, "gravity": [0.0, 0.0]},
-        "solver": {"time_step": 0.02 * t_ref, "theta": 0.5, "nlgs_tolerance": 1e-5,
+        "solver": {"time_step": 0.02 * t_ref, "theta": 1.0, "nlgs_tolerance": 1e-4,
                    "nlgs_max_sweeps": 2000, "relaxation": 1.0, "skin": 0.1},
         "output": {"frames": "stages", "every_steps": 0, "checkpoint_every_steps": 1000},
     }

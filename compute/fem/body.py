@@ -96,14 +96,18 @@ class ElementStresses(NamedTuple):
 class ThetaSystem(NamedTuple):
     """Newton system of one theta-scheme step (see ``FEBody.theta_system``).
 
-    residual: (2n,); matrix: CSR (2n, 2n) = dR/dv+; x_new: (n, 2) end-of-step positions;
-    f_int_new: (2n,) internal force at x_new (the next step's f_int_n once converged).
+    residual: (2n,); matrix: CSR (2n, 2n) = dR/dv+ = M + h^2 theta^2 K_t(x_theta);
+    x_new: (n, 2) end-of-step positions; x_theta: (n, 2) the positions where the internal force
+    is evaluated; f_int: (2n,) f_int(x_theta); k_data: (nnz,) K_t(x_theta) in the body's CSR
+    pattern (to compare tangents between iterations without rebuilding matrices).
     """
 
     residual: np.ndarray
     matrix: sp.csr_matrix
     x_new: np.ndarray
-    f_int_new: np.ndarray
+    x_theta: np.ndarray
+    f_int: np.ndarray
+    k_data: np.ndarray
 
 
 # ----------------------------------------------------------------------------- numba kernels
@@ -499,6 +503,11 @@ class FEBody:
         f, kdata = self._assemble(x, True)
         return f, self._csr(kdata)
 
+    def internal_force_and_tangent_data(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """f_int(x) (2n,) and the values (nnz,) of K_t(x) in the body's CSR pattern (no matrix
+        object built: compare or combine tangents with vector operations, see ``csr``)."""
+        return self._assemble(x, True)
+
     def strain_energy(self, x: np.ndarray) -> float:
         """Total strain energy E(x) per unit thickness."""
         x = self._positions(x)
@@ -539,34 +548,58 @@ class FEBody:
         J = _jacobians(self._positions(x), self.cells, self._dndX)
         return np.flatnonzero(~(J > 0.0).all(axis=1))
 
+    def theta_positions(
+        self, x_n: np.ndarray, v_n: np.ndarray, v_new: np.ndarray, h: float, theta: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(x_theta, x_new), both (n, 2), of a theta step from x_n (n, 2) with velocities v_n,
+        v_new (2n,): x_new = x_n + h ((1 - theta) v_n + theta v_new), x_theta = x_n + theta
+        (x_new - x_n)."""
+        dx = h * ((1.0 - theta) * np.asarray(v_n) + theta * np.asarray(v_new)).reshape(-1, 2)
+        return np.asarray(x_n) + theta * dx, np.asarray(x_n) + dx
+
+    def effective_matrix_data(self, k_data: np.ndarray, h: float, theta: float) -> np.ndarray:
+        """Values (nnz,) of M_hat = M + h^2 theta^2 K_t in the body's CSR pattern."""
+        return self.mass.data + (h * theta) ** 2 * k_data
+
+    def csr(self, data: np.ndarray) -> sp.csr_matrix:
+        """CSR matrix (2n, 2n) in the body's sparsity pattern with values ``data`` (nnz,)."""
+        return self._csr(data)
+
     def theta_system(
-        self, v_new: np.ndarray, x_n: np.ndarray, v_n: np.ndarray, f_int_n: np.ndarray,
-        f_ext_n: np.ndarray, f_ext_new: np.ndarray, h: float, theta: float,
+        self, v_new: np.ndarray, x_n: np.ndarray, v_n: np.ndarray, f_ext_n: np.ndarray,
+        f_ext_new: np.ndarray, h: float, theta: float,
     ) -> ThetaSystem:
         r"""Newton residual and matrix of one theta-scheme step without contact.
 
-        Unknown: end-of-step velocity v_new (2n,). Given x_n (n, 2), v_n, f_int_n = f_int(x_n),
-        f_ext_n, f_ext_new (all (2n,)), time step h and theta in [1/2, 1]:
+        Unknown: end-of-step velocity v_new (2n,). Given x_n (n, 2), v_n, f_ext_n, f_ext_new
+        (all (2n,)), time step h and theta in [1/2, 1]:
 
-            x_new = x_n + h ((1 - theta) v_n + theta v_new)
-            R(v_new) = M (v_new - v_n) - h [(1 - theta) f_ext_n + theta f_ext_new]
-                                       + h [(1 - theta) f_int_n + theta f_int(x_new)]
-            dR/dv_new = M_hat = M + h^2 theta^2 K_t(x_new)
+            x_new   = x_n + h ((1 - theta) v_n + theta v_new)
+            x_theta = x_n + theta (x_new - x_n) = x_n + theta h ((1 - theta) v_n + theta v_new)
+            R(v_new) = M (v_new - v_n) + h f_int(x_theta) - h [(1 - theta) f_ext_n + theta f_ext_new]
+            dR/dv_new = M_hat = M + h^2 theta^2 K_t(x_theta)
 
         Signs: the balance is M dv/dt + f_int(x) = f_ext (+ contact forces), f_int = dE/dx; the
         contact impulse r (2n,) of a Moreau-Jean step enters as R(v_new) = r. A Newton
-        iteration is v_new <- v_new - M_hat^-1 R. Linear momentum is conserved exactly
-        (f_int sums to zero over the nodes). Angular momentum is not: with theta = 1/2 and no
-        external force (trapezoidal rule on f_int) a step changes it by
-        -h/4 sum_a dx_a x (f_int_n - f_int_new)_a, dx = x_new - x_n, i.e. O(h^3) per step
-        (f_int evaluated at the midpoint would conserve it exactly).
+        iteration is v_new <- v_new - M_hat^-1 R.
+
+        Momenta. Linear momentum is conserved exactly (f_int sums to zero over the nodes). At
+        theta = 1/2, x_theta = (x_n + x_new)/2 is the midpoint and the scheme is the implicit
+        midpoint rule: angular momentum L = sum_a x_a x (M v)_a is conserved exactly too. With
+        vbar = (v_n + v_new)/2, x_new = x_theta + h vbar/2, x_n = x_theta - h vbar/2 and
+        M (v_new - v_n) = -h f_int(x_theta):
+            L_new - L_n = -h sum_a x_theta,a x f_int,a + h sum_ab m_ab vbar_a x vbar_b = 0,
+        the first sum because f_int has no torque at any configuration, the second because the
+        consistent mass blocks m_ab I are symmetric in (a, b). At theta = 1 this is backward
+        Euler, x_theta = x_new, with numerical dissipation of the high frequencies (the
+        quasi-static setting). The internal force is never evaluated at x_n, so a step needs no f_int_n.
         """
-        x_new = np.asarray(x_n) + h * ((1.0 - theta) * v_n + theta * v_new).reshape(-1, 2)
-        f_new, k_data = self._assemble(x_new, True)
+        x_theta, x_new = self.theta_positions(x_n, v_n, v_new, h, theta)
+        f, k_data = self._assemble(x_theta, True)
         residual = (
-            self.mass @ (v_new - v_n)
-            - h * ((1.0 - theta) * f_ext_n + theta * f_ext_new)
-            + h * ((1.0 - theta) * f_int_n + theta * f_new)
+            self.mass @ (np.asarray(v_new) - v_n)
+            + h * f
+            - h * ((1.0 - theta) * np.asarray(f_ext_n) + theta * np.asarray(f_ext_new))
         )
-        matrix = self._csr(self.mass.data + (h * theta) ** 2 * k_data)
-        return ThetaSystem(residual, matrix, x_new, f_new)
+        matrix = self._csr(self.effective_matrix_data(k_data, h, theta))
+        return ThetaSystem(residual, matrix, x_new, x_theta, f, k_data)

@@ -1,0 +1,449 @@
+r"""Deformable disks in the NSCD loop: the model (dofs, measures, fields) and its stepper.
+
+Model. q, v = [rigid (x, y, rot)]*nr + [4 walls] + [deformable nodes (x, y)]* (compute.state);
+each deformable body is a :class:`compute.fem.FEBody` (total Lagrangian, plane strain,
+neo-Hookean). Its centre (branch vectors, frames) is its current centroid, its area the exact
+current area of its elements.
+
+Step (:class:`DeformableStepper`), with h, theta; for every deformable body b
+
+    R_b(v) = M_b (v - v^-) + h f_int(x_theta(v)) - h f_ext,    x_theta = x_n + theta h ((1-theta) v^- + theta v)
+    M_hat_b = dR_b/dv = M_b + h^2 theta^2 K_t(x_theta)
+
+(rigid disks and walls: the linear Moreau-Jean step of compute.stepper). The contact
+conditions (Signorini on the predicted end-of-step gap, Coulomb) are written with the contact
+rows H at q_n. Newton iterations k = 0, 1, ... linearise R_b at v^k:
+
+    v_free,b = v^k_b - M_hat_b^-1 R_b(v^k)                       (per body, factorised M_hat_b)
+    W = H^T M_hat^-1 H, with M_hat^-1 restricted to contact dofs  (dense boundary blocks)
+    NLGS over all contacts -> r, v on contact dofs                (compute.nlgs, warm-started)
+    v^{k+1}_b = v_free,b + M_hat_b^-1 (H r)_b                     (interior velocities)
+
+until h theta |v^{k+1} - v^k|_inf <= newton_tolerance x <d> (position correction relative to
+the mean diameter). At convergence R_b(v) = (H r)_b exactly, whatever factorisation was used,
+so a factorisation is kept while M_hat barely changes: it is refactorised when the largest
+change of its entries since the factorisation exceeds ``REFACTOR_CHANGE`` of its largest entry,
+when h or theta changed, or when an iteration with the kept factorisation contracted the
+correction by less than ``SLOW_CONTRACTION``. The dense compliance block of a body is
+recomputed only with a new factorisation or a new set of contact dofs.
+
+Failures are never silent: an inverted element (at x_theta or at the end of the step), a
+non-finite value, or a Newton loop that does not converge in newton_max_iterations makes the
+step restart from its initial state with h/2 (two half steps), up to ``MAX_CUTS`` times; then
+:class:`compute.errors.SimulationError` names the step, the body, the elements and h. A step
+that needed cuts still advances time by h and counts as one step; its last impulses are
+rescaled to the full h so that forces = impulse / h stay right in frames and warm starts.
+
+Frames. ``compute.frames.write_frame_files`` evaluates the contacts of a frame with
+``compute.detection.narrow_phase``, which knows only the rigid families. Until frames.py asks
+the model (``model.frame_contacts(state)``, see :meth:`DeformableModel.frame_contacts`), this
+module routes that one call through the model (``_FramesDetection``), for deformable models only.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from compute import deformable_detection, detection
+from compute.compliance import Compliance
+from compute.contact_geometry import Contacts
+from compute.errors import SceneError, SimulationError
+from compute.fem import FEBody, InvertedElementError, NeoHookean
+from compute.model import Model
+from compute.scene import Scene
+from compute.state import Layout, State
+from compute.stepper import StepReport, Stepper
+
+
+# --------------------------------------------------------------------------------- the model
+
+
+class DeformableModel(Model):
+    """Rigid disks, walls and deformable (FE) disks.
+
+    Arrays besides :class:`Model`'s: ``bodies`` list of FEBody (nd); ``deformable_ids`` (nd,)
+    global body ids; ``deformable_material`` (nd,); ``node_dof0`` first node dof;
+    ``node_start`` (nd + 1,) global node offsets; ``node_body`` (N,) deformable index of each
+    global node; ``loop_nodes`` (n_b,) boundary loops (global node ids, CCW, body after body)
+    with offsets ``loop_start`` (nd + 1,).
+    """
+
+    def __init__(self, scene: Scene):
+        super().__init__(scene)
+        nr = self.layout.n_rigid
+        self.bodies: list[FEBody] = []
+        for d in scene.deformable:
+            m = scene.materials[scene.material_names[scene.body_material[d.body]]]
+            try:
+                body = FEBody(d.points, d.cells, d.element, NeoHookean(m.young, m.poisson, m.density),
+                              m.volumetric)
+            except ValueError as exc:
+                raise SceneError(scene.path / "bodies.vtu", f"cells of body {d.body}",
+                                 "a valid counter-clockwise disk mesh", str(exc)) from None
+            self.bodies.append(body)
+        nd = len(self.bodies)
+        self.deformable_ids = np.array([d.body for d in scene.deformable], dtype=np.int64)
+        self.deformable_material = scene.body_material[self.deformable_ids].astype(np.int64)
+        counts = np.array([b.n_nodes for b in self.bodies], dtype=np.int64)
+        self.node_dof0 = 3 * nr + 4
+        self.node_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        offsets = self.node_dof0 + 2 * self.node_start[:-1]
+        self.layout = Layout(nr, tuple(int(o) for o in offsets), tuple(int(c) for c in counts))
+        self.node_body = np.repeat(np.arange(nd), counts).astype(np.int64)
+        loops = [b.boundary + self.node_start[k] for k, b in enumerate(self.bodies)]
+        self.loop_nodes = np.concatenate(loops).astype(np.int64)
+        self.loop_start = np.concatenate([[0], np.cumsum([len(lp) for lp in loops])]).astype(np.int64)
+        self._loop_body = np.repeat(np.arange(nd), np.diff(self.loop_start))
+        self._reference = np.concatenate([b.X for b in self.bodies])
+        _install_frames_hook()
+
+    def make_stepper(self):
+        return DeformableStepper(self)
+
+    # --- views ---------------------------------------------------------------------------
+    def node_positions(self, q: np.ndarray) -> np.ndarray:
+        """(N, 2) view of all deformable node positions (or velocities) in q (or v)."""
+        return q[self.node_dof0:].reshape(-1, 2)
+
+    def body_nodes(self, a: np.ndarray, k: int) -> np.ndarray:
+        """(n_k, 2) view of deformable body k's nodes in q or v."""
+        return a[self.layout.body_dofs(k)].reshape(-1, 2)
+
+    def bounding_circles(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (nd, 2) (mean of the boundary nodes) and radii (nd,) of circles holding each
+        body's boundary loop, from node positions x (N, 2)."""
+        xb = x[self.loop_nodes]
+        n = np.diff(self.loop_start)
+        c = np.add.reduceat(xb, self.loop_start[:-1], axis=0) / n[:, None]
+        d = np.sqrt(np.sum((xb - c[self._loop_body]) ** 2, axis=1))
+        return np.ascontiguousarray(c), np.maximum.reduceat(d, self.loop_start[:-1])
+
+    # --- state and measures --------------------------------------------------------------
+    def initial_state(self) -> State:
+        state = super().initial_state()
+        self.node_positions(state.q)[:] = self._reference
+        return state
+
+    def body_centres(self, q: np.ndarray) -> np.ndarray:
+        c = super().body_centres(q)
+        for k, b in enumerate(self.bodies):
+            c[self.deformable_ids[k]] = b.centroid(self.body_nodes(q, k))
+        return c
+
+    def current_meshes(self, q: np.ndarray) -> dict:
+        return {int(self.deformable_ids[k]): (self.body_nodes(q, k).copy(), b.cells, b.element.name)
+                for k, b in enumerate(self.bodies)}
+
+    def particle_area(self, q: np.ndarray) -> float:
+        return super().particle_area(q) + sum(b.area(self.body_nodes(q, k)) for k, b in enumerate(self.bodies))
+
+    def kinetic_energy(self, v: np.ndarray) -> float:
+        e = super().kinetic_energy(v)
+        for k, b in enumerate(self.bodies):
+            vb = v[self.layout.body_dofs(k)]
+            e += 0.5 * float(vb @ (b.mass @ vb))
+        return e
+
+    def gravity_forces(self) -> np.ndarray:
+        """Rigid and wall part from Model; deformable nodes get the consistent M g."""
+        f = super().gravity_forces()
+        g = np.asarray(self.scene.loading.gravity, float)
+        for k, b in enumerate(self.bodies):
+            f[self.layout.body_dofs(k)] = b.mass @ np.tile(g, b.n_nodes)
+        return f
+
+    def frame_fields(self, state: State) -> dict:
+        fields = super().frame_fields(state)
+        point, cell = fields["point"], fields["cell"]
+        for name in ("displacement", "velocity"):
+            point[name]["deformable"] = {}
+        for name in ("rotation", "angular_velocity", "cauchy_stress", "pressure", "von_mises"):
+            cell[name]["deformable"] = {}
+        for k, b in enumerate(self.bodies):
+            i = int(self.deformable_ids[k])
+            x, v = self.body_nodes(state.q, k), self.body_nodes(state.v, k)
+            z = np.zeros((b.n_nodes, 1))
+            point["displacement"]["deformable"][i] = np.hstack([x - b.X, z])
+            point["velocity"]["deformable"][i] = np.hstack([v, z])
+            s = b.element_stresses(x)
+            ne = b.cells.shape[0]
+            cell["rotation"]["deformable"][i] = np.zeros(ne)
+            cell["angular_velocity"]["deformable"][i] = np.zeros(ne)
+            cell["cauchy_stress"]["deformable"][i] = s.cauchy.reshape(ne, 9)
+            cell["pressure"]["deformable"][i] = s.pressure
+            cell["von_mises"]["deformable"][i] = s.von_mises
+        return fields
+
+    def frame_contacts(self, state: State) -> Contacts:
+        """All contacts (rigid families, then node-wall, node-disk, node-segment) at the state's
+        configuration with the impulses of its memory: what a frame writes."""
+        centres = self.body_centres(state.q)
+        return Contacts.concatenate([detection.narrow_phase(self, state),
+                                     deformable_detection.narrow_phase(self, state, centres)])
+
+
+class _FramesDetection:
+    """Stand-in for the ``detection`` module inside compute.frames: ``narrow_phase`` asks the
+    model for its frame contacts when it has them, everything else is compute.detection's."""
+
+    def __init__(self, module):
+        self._module = module
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+    def narrow_phase(self, model, state):
+        if hasattr(model, "frame_contacts"):
+            return model.frame_contacts(state)
+        return self._module.narrow_phase(model, state)
+
+
+def _install_frames_hook() -> None:
+    """TEMPORARY: see the module docstring (remove once frames.py calls model.frame_contacts)."""
+    import compute.frames as frames
+
+    if not isinstance(frames.detection, _FramesDetection) and "frame_contacts" not in frames.write_frame_files.__code__.co_names:
+        frames.detection = _FramesDetection(frames.detection)
+
+
+# ------------------------------------------------------------------------------ the stepper
+
+
+class _StepFailure(Exception):
+    """A step attempt that must not be accepted (the message is the diagnosis)."""
+
+
+class _BodySolver:
+    """Factorised effective matrix of one deformable body, kept while it stays valid."""
+
+    def __init__(self, body: FEBody, dofs: slice):
+        self.body, self.dofs = body, dofs
+        self.lu = None
+        self.data = None
+        self.key = None
+        self.cache: dict = {}
+        self.scale = 1.0
+
+    def prepare(self, m_data: np.ndarray, key: tuple, change_limit: float, force: bool) -> bool:
+        """Factorise M_hat (values m_data) unless the kept factorisation is still valid.
+        Returns True if it factorised."""
+        if self.lu is not None and not force and key == self.key:
+            if np.max(np.abs(m_data - self.data)) <= change_limit * self.scale:
+                return False
+        self.lu = spla.splu(self.body.csr(m_data).tocsc())
+        self.data = m_data.copy()
+        self.scale = float(np.max(np.abs(m_data)))
+        self.key = key
+        self.cache = {}
+        return True
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self.lu.solve(rhs)
+
+    def columns(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Z = M_hat^-1 E (n_dof, m) for the unit columns of the local dofs (m,), and C = Z[local]."""
+        key = local.tobytes()
+        if key not in self.cache:
+            e = np.zeros((self.body.n_dof, len(local)))
+            e[local, np.arange(len(local))] = 1.0
+            z = self.solve(e)
+            c = z[local]
+            self.cache = {key: (z, np.ascontiguousarray(0.5 * (c + c.T)))}
+        return self.cache[key]
+
+
+@dataclass
+class DeformableStepReport(StepReport):
+    newton_iterations: int = 0
+    factorizations: int = 0
+    cuts: int = 0
+    h: float = 0.0
+
+
+class DeformableStepper(Stepper):
+    """Moreau-Jean step with Newton iterations for deformable bodies (module docstring)."""
+
+    MAX_CUTS = 4            # a step may be halved this many times before the run stops
+    REFACTOR_CHANGE = 0.05  # refactorise when max |M_hat - M_hat_factorised| > this x max |M_hat_f|
+    SLOW_CONTRACTION = 0.25  # ... or when the kept factorisation contracted a correction less
+
+    def __init__(self, model: DeformableModel):
+        super().__init__(model)
+        self.h_nominal = self.h
+        s = model.scene.solver
+        self.newton_tolerance = s.newton_tolerance
+        self.newton_max_iterations = s.newton_max_iterations
+        self.solvers = [_BodySolver(b, model.layout.body_dofs(k)) for k, b in enumerate(model.bodies)]
+        self.length = model.diameter
+        self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "cuts": 0, "nlgs_sweeps": 0}
+        self._step_index = 0
+        self._n_rigid_contacts = 0
+
+    # --- the step --------------------------------------------------------------------------
+    def step(self, state: State, pressure: float, wall_speed: float = 0.0) -> DeformableStepReport:
+        """Advance ``state`` by h (cutting the step when it fails; see the module docstring)."""
+        t0, s0, h = state.time, state.step, self.h_nominal
+        self._step_index = s0
+        try:
+            rep = self._advance(state, pressure, wall_speed, h, 0)
+        finally:
+            self.h = h
+        state.time, state.step = t0 + h, s0 + 1
+        if rep.h != h:  # impulses of the last sub-step, over rep.h: rescale to forces x h
+            for fam in state.impulses:
+                state.impulses[fam] = state.impulses[fam] * (h / rep.h)
+            rep.contacts.impulse *= h / rep.h
+        self.stats["steps"] += 1
+        return rep
+
+    def _advance(self, state, pressure, wall_speed, h, depth) -> DeformableStepReport:
+        snap = _snapshot(state)
+        try:
+            return self._attempt(state, pressure, wall_speed, h)
+        except _StepFailure as exc:
+            if depth >= self.MAX_CUTS:
+                raise SimulationError(f"step {self._step_index + 1}: {exc}; the step was cut {depth} times "
+                                      f"(h = {self.h_nominal:.4g} -> {h:.4g}) without success") from None
+            _restore(state, snap)
+            self.stats["cuts"] += 1
+            first = self._advance(state, pressure, wall_speed, 0.5 * h, depth + 1)
+            second = self._advance(state, pressure, wall_speed, 0.5 * h, depth + 1)
+            second.sweeps += first.sweeps
+            second.newton_iterations += first.newton_iterations
+            second.factorizations += first.factorizations
+            second.cuts += first.cuts + 1
+            return second
+
+    def contacts(self, state: State) -> Contacts:
+        """All candidate contacts at q_n: rigid families, then the deformable ones."""
+        m = self.model
+        if deformable_detection.needs_detection(m, state):
+            deformable_detection.detect(m, state)
+        rigid = detection.narrow_phase(m, state)
+        self._n_rigid_contacts = len(rigid)
+        return Contacts.concatenate([rigid, deformable_detection.narrow_phase(m, state)])
+
+    def _attempt(self, state: State, pressure: float, wall_speed: float, h: float) -> DeformableStepReport:
+        m, th = self.model, self.theta
+        self.h = h
+        contacts = self.contacts(state)
+        v_free0, diag_dofs, diag = self.free_velocity(state, pressure, wall_speed)
+        blocks = self._contact_dofs(contacts)
+        v = v_free0.copy()  # deformable part: v^- as the first Newton iterate
+        key = (h, th)
+        force = [False] * len(self.solvers)
+        stale = [False] * len(self.solvers)
+        sweeps_total, n_fact, err_prev = 0, 0, np.inf
+        tol = self.newton_tolerance * self.length
+        for it in range(1, self.newton_max_iterations + 1):
+            v_free = v_free0.copy()
+            dense = []
+            for k, sol in enumerate(self.solvers):
+                d = sol.dofs
+                x_n = m.body_nodes(state.q, k)
+                try:
+                    sys = sol.body.theta_system(v[d], x_n, state.v[d], self.f_gravity[d], self.f_gravity[d], h, th)
+                except InvertedElementError as exc:
+                    raise _StepFailure(self._inverted(k, exc, "x_theta", it)) from None
+                if not np.all(np.isfinite(sys.residual)):
+                    raise _StepFailure(f"body {m.deformable_ids[k]}: non-finite internal forces "
+                                       f"(Newton iteration {it})")
+                refactored = sol.prepare(sys.matrix.data, key, self.REFACTOR_CHANGE, force[k])
+                n_fact += refactored
+                stale[k] = not refactored
+                force[k] = False
+                v_free[d] = v[d] - sol.solve(sys.residual)
+                if k in blocks:
+                    local = blocks[k]
+                    dense.append((d.start + local, sol.columns(local)[1]))
+            comp = Compliance.build(m.layout.n_dofs, diag_dofs, diag, dense)
+            try:
+                v_new, sweeps, residual = self.solve_contacts(state, contacts, v_free, comp)
+            except SimulationError as exc:
+                raise _StepFailure(str(exc)) from None
+            sweeps_total += sweeps
+            self._recover_interior(contacts, blocks, v_free, v_new)
+            if not np.all(np.isfinite(v_new)):
+                raise _StepFailure(f"non-finite velocities at Newton iteration {it}")
+            err = h * th * float(np.max(np.abs(v_new - v))) if len(v) else 0.0
+            v = v_new
+            if err <= tol:
+                break
+            if it > 1 and err > 1e6 * max(err_prev, tol):
+                raise _StepFailure(f"Newton diverges (position correction {err:.3g} after {err_prev:.3g}, "
+                                   f"iteration {it})")
+            if err > self.SLOW_CONTRACTION * err_prev:
+                force = [f or s for f, s in zip(force, stale)]
+            err_prev = err
+        else:
+            raise _StepFailure(f"Newton did not converge in {self.newton_max_iterations} iterations "
+                               f"(last position correction {err:.3g}, tolerance {tol:.3g})")
+        if th < 1.0:  # x_new is not x_theta: check it too
+            for k, sol in enumerate(self.solvers):
+                d = sol.dofs
+                x_new = m.body_nodes(state.q, k) + h * ((1 - th) * state.v[d] + th * v[d]).reshape(-1, 2)
+                bad = sol.body.inverted_elements(x_new)
+                if bad.size:
+                    raise _StepFailure(self._inverted(k, InvertedElementError(bad), "the end of the step", it))
+        self.stats["newton_iterations"] += it
+        self.stats["factorizations"] += n_fact
+        self.stats["nlgs_sweeps"] += sweeps_total
+        rep = self.finish(state, v, contacts, sweeps_total, residual)
+        return DeformableStepReport(rep.sweeps, rep.residual, rep.n_contacts, rep.max_penetration, rep.contacts,
+                                    newton_iterations=it, factorizations=n_fact, cuts=0, h=h)
+
+    def finish(self, state: State, v: np.ndarray, contacts: Contacts, sweeps: int, residual: float) -> StepReport:
+        rep = super().finish(state, v, contacts, sweeps, residual)  # rigid memory: the first rows
+        deformable_detection.store_impulses(state, contacts.impulse[self._n_rigid_contacts:])
+        return rep
+
+    # --- helpers -----------------------------------------------------------------------------
+    def _contact_dofs(self, contacts: Contacts) -> dict[int, np.ndarray]:
+        """{deformable index: sorted local dofs (m,) touched by contact rows}."""
+        m = self.model
+        d = contacts.dof[contacts.dof >= m.node_dof0]
+        if d.size == 0:
+            return {}
+        d = np.unique(d)
+        body = m.node_body[(d - m.node_dof0) // 2]
+        out = {}
+        for k in np.unique(body):
+            out[int(k)] = (d[body == k] - m.layout.node_offsets[k]).astype(np.int64)
+        return out
+
+    def _recover_interior(self, contacts: Contacts, blocks: dict, v_free: np.ndarray, v: np.ndarray) -> None:
+        """v_b = v_free,b + M_hat_b^-1 (H r)_b for every body with contacts (in place in v)."""
+        if not blocks:
+            return
+        hr = np.zeros(len(v))
+        ok = contacts.dof >= 0
+        val = contacts.hn * contacts.impulse[:, :1] + contacts.ht * contacts.impulse[:, 1:]
+        np.add.at(hr, contacts.dof[ok], val[ok])
+        for k, local in blocks.items():
+            sol = self.solvers[k]
+            z, _ = sol.columns(local)
+            d = sol.dofs
+            v[d] = v_free[d] + z @ hr[d.start + local]
+
+    def _inverted(self, k: int, exc: InvertedElementError, where: str, it: int) -> str:
+        els = exc.elements
+        return (f"body {int(self.model.deformable_ids[k])}: {els.size} inverted element(s) at {where} "
+                f"{els[:10].tolist()}{' ...' if els.size > 10 else ''} (Newton iteration {it}, h = {self.h:.4g})")
+
+
+def _snapshot(state: State):
+    return (state.q.copy(), state.v.copy(), state.time, state.step,
+            None if state.q_detect is None else state.q_detect.copy(),
+            {k: a.copy() for k, a in state.pairs.items()}, {k: a.copy() for k, a in state.impulses.items()})
+
+
+def _restore(state: State, snap) -> None:
+    q, v, t, s, qd, pairs, imp = snap
+    state.q, state.v, state.time, state.step = q.copy(), v.copy(), t, s
+    state.q_detect = None if qd is None else qd.copy()
+    state.pairs = copy.deepcopy(pairs)
+    state.impulses = copy.deepcopy(imp)

@@ -1,0 +1,248 @@
+"""Contact rows of deformable boundaries (numba kernels): node-wall, node-disk, node-segment.
+
+Conventions of :mod:`compute.contact_geometry`: body i is the *candidate* (the deformable body
+owning the boundary node), body j the *antagonist* (a wall, a rigid disk, or the deformable body
+owning the segment); n points from i to j, t = (-n_y, n_x), u = H^T v with
+u_n = n . (v_j(x_c) - v_i(x_c)) = d gap / dt, and the impulse r = r_n n + r_t t acts on j.
+
+Deformable nodes are numbered globally (all deformable bodies' nodes one after the other, in
+the order of q); node g has the dofs ``node_dof0 + 2 g`` (x) and ``+ 1`` (y), its current
+position is ``x[g]`` with ``x`` (n_nodes_total, 2). Boundary segments of a deformable body are
+the straight pieces between consecutive nodes of its counter-clockwise boundary loop (corner
+and midside nodes for T6); the loop of body k is ``loop_nodes[loop_start[k]:loop_start[k+1]]``
+and segment s joins loop node s and s + 1 (mod the loop length). For a CCW loop the outward
+normal of a segment e = x_b2 - x_b1 is (e_y, -e_x) / |e|.
+
+Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``normal``,
+``point`` of its candidates; the caller sets bodies, friction, branch and impulses):
+
+- node-wall ``(g, w)``: frictionless, gap = signed distance node -> wall along the wall's
+  normal; dofs (node x, node y, wall).
+- node-disk ``(g, d)``, d a local rigid-disk index: gap = |x_d - x_g| - r_d, n = (x_d - x_g)/|.|;
+  dofs (node x, y, disk x, y, rotation); the disk's contact point is x_d - r_d n.
+- node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
+  kernel updates in place (it walks along l's loop to the segment at minimum distance);
+  gap = (x_g - x_p) . n_out with x_p = (1 - xi) x_b1 + xi x_b2 the closest point of the
+  segment (xi clamped to [0, 1]); n = -n_out; dofs (node x, y, b1 x, y, b2 x, y) with weights
+  (-1, 1 - xi, xi). The normal's rotation is neglected in u_n (exact at gap = 0).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def node_wall_rows(pairs, x, node_dof0, bounds, wall_dof0, normals, axes, dof, hn, ht, gap, normal, point):
+    """Rows of (node g, wall w) pairs (m, 2)."""
+    for c in range(pairs.shape[0]):
+        g, w = pairs[c, 0], pairs[c, 1]
+        nx, ny = normals[w, 0], normals[w, 1]
+        tx, ty = -ny, nx
+        if w < 2:
+            d = (bounds[w] - x[g, 0]) * nx
+        else:
+            d = (bounds[w] - x[g, 1]) * ny
+        gap[c] = d
+        normal[c, 0], normal[c, 1] = nx, ny
+        point[c, 0] = x[g, 0] + d * nx
+        point[c, 1] = x[g, 1] + d * ny
+        k = node_dof0 + 2 * g
+        dof[c, 0], dof[c, 1], dof[c, 2] = k, k + 1, wall_dof0 + w
+        hn[c, 0], hn[c, 1] = -nx, -ny
+        ht[c, 0], ht[c, 1] = -tx, -ty
+        hn[c, 2] = nx * axes[w, 0] + ny * axes[w, 1]
+        ht[c, 2] = tx * axes[w, 0] + ty * axes[w, 1]
+
+
+@numba.njit(cache=True)
+def node_disk_rows(pairs, x, node_dof0, centres, radii, disk_dof0, dof, hn, ht, gap, normal, point):
+    """Rows of (node g, rigid disk d) pairs (m, 2); disk d has dofs disk_dof0[d] + (0, 1, 2)."""
+    for c in range(pairs.shape[0]):
+        g, d = pairs[c, 0], pairs[c, 1]
+        dx = centres[d, 0] - x[g, 0]
+        dy = centres[d, 1] - x[g, 1]
+        dist = np.sqrt(dx * dx + dy * dy)
+        nx, ny = dx / dist, dy / dist
+        tx, ty = -ny, nx
+        gg = dist - radii[d]
+        gap[c] = gg
+        normal[c, 0], normal[c, 1] = nx, ny
+        point[c, 0] = x[g, 0] + 0.5 * gg * nx
+        point[c, 1] = x[g, 1] + 0.5 * gg * ny
+        k = node_dof0 + 2 * g
+        dof[c, 0], dof[c, 1] = k, k + 1
+        for m in range(3):
+            dof[c, 2 + m] = disk_dof0[d] + m
+        hn[c, 0], hn[c, 1] = -nx, -ny
+        ht[c, 0], ht[c, 1] = -tx, -ty
+        hn[c, 2], hn[c, 3], hn[c, 4] = nx, ny, 0.0
+        ht[c, 2], ht[c, 3], ht[c, 4] = tx, ty, -radii[d]
+
+
+@numba.njit(cache=True, inline="always")
+def _segment_distance2(px, py, ax, ay, bx, by):
+    """Squared distance from p to the segment [a, b] and the clamped parameter xi."""
+    ex, ey = bx - ax, by - ay
+    l2 = ex * ex + ey * ey
+    xi = ((px - ax) * ex + (py - ay) * ey) / l2 if l2 > 0.0 else 0.0
+    xi = min(max(xi, 0.0), 1.0)
+    qx = ax + xi * ex - px
+    qy = ay + xi * ey - py
+    return qx * qx + qy * qy, xi
+
+
+@numba.njit(cache=True)
+def closest_segment(px, py, x, loop_nodes, start, n_loop, s):
+    """Walk from segment ``s`` of a loop (``loop_nodes[start:start + n_loop]``) to the segment
+    at locally minimum distance from (px, py); returns (segment, squared distance)."""
+    s = s % n_loop
+    a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
+    best, _ = _segment_distance2(px, py, x[a, 0], x[a, 1], x[b, 0], x[b, 1])
+    for _ in range(n_loop):
+        moved = False
+        for step in (-1, 1):
+            t = (s + step) % n_loop
+            a, b = loop_nodes[start + t], loop_nodes[start + (t + 1) % n_loop]
+            d2, _ = _segment_distance2(px, py, x[a, 0], x[a, 1], x[b, 0], x[b, 1])
+            if d2 < best:
+                best, s, moved = d2, t, True
+                break
+        if not moved:
+            break
+    return s, best
+
+
+@numba.njit(cache=True)
+def node_segment_rows(cand, x, node_dof0, loop_nodes, loop_start, dof, hn, ht, gap, normal, point):
+    """Rows of (node g, deformable body l, segment hint s) candidates (m, 3); the hint column
+    is updated in place to the closest segment."""
+    for c in range(cand.shape[0]):
+        g, l = cand[c, 0], cand[c, 1]
+        start = loop_start[l]
+        n_loop = loop_start[l + 1] - start
+        px, py = x[g, 0], x[g, 1]
+        s, _ = closest_segment(px, py, x, loop_nodes, start, n_loop, cand[c, 2])
+        cand[c, 2] = s
+        b1, b2 = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
+        ex, ey = x[b2, 0] - x[b1, 0], x[b2, 1] - x[b1, 1]
+        length = np.sqrt(ex * ex + ey * ey)
+        _, xi = _segment_distance2(px, py, x[b1, 0], x[b1, 1], x[b2, 0], x[b2, 1])
+        ox, oy = ey / length, -ex / length  # outward normal of body l
+        qx, qy = x[b1, 0] + xi * ex, x[b1, 1] + xi * ey
+        gg = (px - qx) * ox + (py - qy) * oy
+        nx, ny = -ox, -oy
+        tx, ty = -ny, nx
+        gap[c] = gg
+        normal[c, 0], normal[c, 1] = nx, ny
+        point[c, 0] = px + 0.5 * gg * nx
+        point[c, 1] = py + 0.5 * gg * ny
+        ka, k1, k2 = node_dof0 + 2 * g, node_dof0 + 2 * b1, node_dof0 + 2 * b2
+        dof[c, 0], dof[c, 1], dof[c, 2], dof[c, 3], dof[c, 4], dof[c, 5] = ka, ka + 1, k1, k1 + 1, k2, k2 + 1
+        hn[c, 0], hn[c, 1] = -nx, -ny
+        ht[c, 0], ht[c, 1] = -tx, -ty
+        hn[c, 2], hn[c, 3] = (1.0 - xi) * nx, (1.0 - xi) * ny
+        ht[c, 2], ht[c, 3] = (1.0 - xi) * tx, (1.0 - xi) * ty
+        hn[c, 4], hn[c, 5] = xi * nx, xi * ny
+        ht[c, 4], ht[c, 5] = xi * tx, xi * ty
+
+
+# ------------------------------------------------------------------------ node-level candidates
+
+
+@numba.njit(cache=True)
+def near_wall_nodes(body_walls, x, loop_nodes, loop_start, bounds, normals, skin):
+    """(node, wall) pairs (m, 2) of the boundary nodes of body k within ``skin`` of wall w, for
+    the body-level candidates ``body_walls`` (p, 2) = (deformable index k, wall w)."""
+    size = 0
+    for p in range(body_walls.shape[0]):
+        k = body_walls[p, 0]
+        size += loop_start[k + 1] - loop_start[k]
+    out = np.empty((size, 2), np.int64)
+    m = 0
+    for p in range(body_walls.shape[0]):
+        k, w = body_walls[p, 0], body_walls[p, 1]
+        for i in range(loop_start[k], loop_start[k + 1]):
+            g = loop_nodes[i]
+            if w < 2:
+                d = (bounds[w] - x[g, 0]) * normals[w, 0]
+            else:
+                d = (bounds[w] - x[g, 1]) * normals[w, 1]
+            if d < skin:
+                out[m, 0], out[m, 1] = g, w
+                m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True)
+def near_disk_nodes(body_disks, x, loop_nodes, loop_start, centres, radii, skin):
+    """(node, disk) pairs (m, 2) of the boundary nodes of body k within ``skin`` of rigid disk
+    d, for the body-level candidates ``body_disks`` (p, 2) = (deformable index k, disk d)."""
+    size = 0
+    for p in range(body_disks.shape[0]):
+        k = body_disks[p, 0]
+        size += loop_start[k + 1] - loop_start[k]
+    out = np.empty((size, 2), np.int64)
+    m = 0
+    for p in range(body_disks.shape[0]):
+        k, d = body_disks[p, 0], body_disks[p, 1]
+        for i in range(loop_start[k], loop_start[k + 1]):
+            g = loop_nodes[i]
+            dx = x[g, 0] - centres[d, 0]
+            dy = x[g, 1] - centres[d, 1]
+            if np.sqrt(dx * dx + dy * dy) - radii[d] < skin:
+                out[m, 0], out[m, 1] = g, d
+                m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True)
+def near_segment_nodes(body_pairs, x, loop_nodes, loop_start, centres, radii, skin):
+    """(node, body, segment) candidates (m, 3), both directions, for the body-level pairs
+    ``body_pairs`` (p, 2) of deformable bodies: every boundary node of k within ``skin`` of a
+    boundary segment of l (and of l against k), with that closest segment. ``centres``,
+    ``radii`` (n_def, 2), (n_def,): bounding circles of the boundary loops."""
+    size = 0
+    for p in range(body_pairs.shape[0]):
+        k, l = body_pairs[p, 0], body_pairs[p, 1]
+        size += loop_start[k + 1] - loop_start[k] + loop_start[l + 1] - loop_start[l]
+    out = np.empty((size, 3), np.int64)
+    m = 0
+    for p in range(body_pairs.shape[0]):
+        for side in range(2):
+            k, l = (body_pairs[p, 0], body_pairs[p, 1]) if side == 0 else (body_pairs[p, 1], body_pairs[p, 0])
+            start = loop_start[l]
+            n_loop = loop_start[l + 1] - start
+            reach = radii[l] + skin
+            for i in range(loop_start[k], loop_start[k + 1]):
+                g = loop_nodes[i]
+                px, py = x[g, 0], x[g, 1]
+                dx, dy = px - centres[l, 0], py - centres[l, 1]
+                if dx * dx + dy * dy >= reach * reach:
+                    continue
+                best = np.inf
+                seg = 0
+                for s in range(n_loop):
+                    a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
+                    d2, _ = _segment_distance2(px, py, x[a, 0], x[a, 1], x[b, 0], x[b, 1])
+                    if d2 < best:
+                        best, seg = d2, s
+                if best < skin * skin or _inside_loop(px, py, x, loop_nodes, start, n_loop):
+                    out[m, 0], out[m, 1], out[m, 2] = g, l, seg
+                    m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True)
+def _inside_loop(px, py, x, loop_nodes, start, n_loop):
+    """True if (px, py) lies inside the polygon of a boundary loop (crossing number)."""
+    inside = False
+    for s in range(n_loop):
+        a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
+        ay, by = x[a, 1], x[b, 1]
+        if (ay > py) != (by > py):
+            xc = x[a, 0] + (py - ay) / (by - ay) * (x[b, 0] - x[a, 0])
+            if px < xc:
+                inside = not inside
+    return inside

@@ -1,0 +1,45 @@
+"""Bringing a loose packing to the jammed state with the compute stage, as LMGC90 users do.
+
+The loose packing is written as a scene whose walls are pushed by a small pressure with the
+wall damping that keeps the inertial number near ``inertial_number``; compute runs it to
+equilibrium; the jammed positions and box are read back from its last frame (a file, not
+compute's memory).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pre.scene import default_parameters, write_scene
+
+
+def jam(workdir: str | Path, centres: np.ndarray, radii: np.ndarray, box: tuple[float, float, float, float],
+        friction: float, pressure: float = 1.0, inertial_number: float = 1e-3,
+        overrides: dict | None = None, log=None) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """Compress the rigid disks centres (n, 2), radii (n,) in ``box`` at ``pressure`` until jammed.
+
+    Runs in ``workdir``/scene and ``workdir``/out; returns the jammed centres (n, 2) and box.
+    ``overrides`` maps "table.key" to a value of the scene parameters (e.g. "solver.time_step").
+    """
+    from compute.run import run
+
+    from meshio import vtu
+
+    workdir = Path(workdir)
+    params = default_parameters(box, friction, float(2 * radii.mean()), [pressure])
+    params["walls"]["damping_inertial_number"] = inertial_number
+    for key, value in (overrides or {}).items():
+        table, field = key.split(".")
+        params[table][field] = value
+    write_scene(workdir / "scene", params, centres, radii, ["rigid"] * len(radii))
+    state = run(workdir / "scene", workdir / "out", log=log)
+    last = state.frame - 1
+    bodies = vtu.read(workdir / "out" / "frames" / f"bodies_{last:05d}.vtu")
+    walls = vtu.read(workdir / "out" / "frames" / f"walls_{last:05d}.vtu")
+    order = np.argsort(np.asarray(bodies.cell_data["body"][0]))
+    vertex = bodies.cells[0].data[:, 0]
+    jammed = np.asarray(bodies.points)[vertex[order], :2]
+    position = np.asarray(walls.cell_data["position"][0], float)
+    return jammed, tuple(float(x) for x in position)
