@@ -282,6 +282,7 @@ class DeformableStepper(Stepper):
         self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "cuts": 0, "nlgs_sweeps": 0}
         self._step_index = 0
         self._n_rigid_contacts = 0
+        self._backtracks = 0
 
     # --- the step --------------------------------------------------------------------------
     def step(self, state: State, pressure: float, wall_speed: float = 0.0) -> DeformableStepReport:
@@ -359,7 +360,11 @@ class DeformableStepper(Stepper):
                 v_free[d] = v[d] - sol.solve(sys.residual)
                 if k in blocks:
                     local = blocks[k]
-                    dense.append((d.start + local, sol.columns(local)[1]))
+                    c = sol.columns(local)[1]
+                    if not np.all(np.diag(c) > 0.0):
+                        raise _StepFailure(f"body {m.deformable_ids[k]}: effective matrix M + h^2 theta^2 K_t not "
+                                           f"positive definite on its contact dofs (Newton iteration {it}, h = {h:.4g})")
+                    dense.append((d.start + local, c))
             comp = Compliance.build(m.layout.n_dofs, diag_dofs, diag, dense)
             try:
                 v_new, sweeps, residual = self.solve_contacts(state, contacts, v_free, comp)
@@ -369,6 +374,7 @@ class DeformableStepper(Stepper):
             self._recover_interior(contacts, blocks, v_free, v_new)
             if not np.all(np.isfinite(v_new)):
                 raise _StepFailure(f"non-finite velocities at Newton iteration {it}")
+            v_new = self._admissible(state, v, v_new, h)
             err = h * th * float(np.max(np.abs(v_new - v))) if len(v) else 0.0
             v = v_new
             if err <= tol:
@@ -402,6 +408,31 @@ class DeformableStepper(Stepper):
         return rep
 
     # --- helpers -----------------------------------------------------------------------------
+    MAX_BACKTRACKS = 12
+
+    def _admissible(self, state: State, v: np.ndarray, v_new: np.ndarray, h: float) -> np.ndarray:
+        """Backtracking on the Newton update: v + a (v_new - v), a = 1, 1/2, 1/4, ..., the first
+        for which no element is inverted at x_theta or x_new (a Newton step from a linearised
+        contact solution may overshoot a large load increment). Raises _StepFailure if none."""
+        m, th = self.model, self.theta
+        a = 1.0
+        for _ in range(self.MAX_BACKTRACKS):
+            trial = v + a * (v_new - v) if a < 1.0 else v_new
+            ok = True
+            for k, sol in enumerate(self.solvers):
+                d = sol.dofs
+                x_n = m.body_nodes(state.q, k)
+                x_theta, x_new = sol.body.theta_positions(x_n, state.v[d], trial[d], h, th)
+                if sol.body.inverted_elements(x_theta).size or (th < 1.0 and sol.body.inverted_elements(x_new).size):
+                    ok = False
+                    break
+            if ok:
+                self._backtracks += a < 1.0
+                return trial
+            a *= 0.5
+        raise _StepFailure(self._inverted(k, InvertedElementError(sol.body.inverted_elements(x_theta)),
+                                          "x_theta even after backtracking", -1))
+
     def _contact_dofs(self, contacts: Contacts) -> dict[int, np.ndarray]:
         """{deformable index: sorted local dofs (m,) touched by contact rows}."""
         m = self.model

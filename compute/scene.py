@@ -321,8 +321,12 @@ def _read_output(r: _Reader) -> Output:
 
 
 def _check_inside_box(file: Path, bodies: dict, walls: Walls) -> None:
-    xmin, xmax, ymin, ymax = walls.bounds
+    """Every body inside the box, up to the overlap tolerance of a jammed NSCD state."""
+    from compute.bodies_io import OVERLAP_TOLERANCE
+
     c, rad = bodies["rigid_centres"], bodies["rigid_radii"]
+    slack = OVERLAP_TOLERANCE * float(bodies["radius"].min())
+    xmin, xmax, ymin, ymax = np.array(walls.bounds) + np.array([-slack, slack, -slack, slack])
     out = (c[:, 0] - rad < xmin) | (c[:, 0] + rad > xmax) | (c[:, 1] - rad < ymin) | (c[:, 1] + rad > ymax)
     for b in bodies["deformable"]:
         p = b.points

@@ -43,3 +43,22 @@ def jam(workdir: str | Path, centres: np.ndarray, radii: np.ndarray, box: tuple[
     jammed = np.asarray(bodies.points)[vertex[order], :2]
     position = np.asarray(walls.cell_data["position"][0], float)
     return jammed, tuple(float(x) for x in position)
+
+
+def jammed_rigid_scene(workdir: str | Path, n: int, friction: float, seed: int, pressures: list[float],
+                       loose_phi: float = 0.5, overrides: dict | None = None, log=None) -> Path:
+    """Write ``workdir``/scene: n polydisperse rigid disks jammed at friction ``friction``, with the
+    loading program ``pressures``. The preparation run is kept in ``workdir``/jamming."""
+    from pre.packing import polydisperse_radii, random_loose_packing
+
+    workdir = Path(workdir)
+    rng = np.random.default_rng(seed)
+    radii = polydisperse_radii(n, rng=rng)
+    centres, box = random_loose_packing(radii, loose_phi, rng)
+    centres, box = jam(workdir / "jamming", centres, radii, box, friction, pressure=min(pressures),
+                       overrides=overrides, log=log)
+    params = default_parameters(box, friction, float(2 * radii.mean()), pressures)
+    for key, value in (overrides or {}).items():
+        table, field = key.split(".")
+        params[table][field] = value
+    return write_scene(workdir / "scene", params, centres, radii, ["rigid"] * n)

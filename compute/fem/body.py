@@ -543,6 +543,10 @@ class FEBody:
         moment = np.einsum("eq,qa,eai->i", da, self._N_m, x[self.cells])
         return moment / da.sum()
 
+    def jacobians(self, x: np.ndarray) -> np.ndarray:
+        """J = det F (n_elem, n_q) at the stiffness quadrature points for positions x (n, 2)."""
+        return _jacobians(self._positions(x), self.cells, self._dndX)
+
     def inverted_elements(self, x: np.ndarray) -> np.ndarray:
         """Indices (k,) of the elements with J <= 0 (or NaN) at some stiffness quadrature point."""
         J = _jacobians(self._positions(x), self.cells, self._dndX)

@@ -1,0 +1,25 @@
+"""Stage 2 of the rigid jamming study: runs DIR/scene into DIR/out (frames, history, checkpoints)."""
+
+import sys
+from pathlib import Path
+
+# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+
+import argparse  # noqa: E402
+from compute.run import run
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--workdir", required=True, help="study folder holding WORKDIR/scene; writes WORKDIR/out")
+    p.add_argument("--resume", action="store_true", help="continue from the last checkpoint")
+    a = p.parse_args(argv)
+    w = Path(a.workdir)
+    state = run(w / "scene", w / "out", resume=a.resume, log=print)
+    print(f"done: {state.step} steps, {state.frame} frames in {w / 'out'}")
+
+
+if __name__ == "__main__":
+    main()

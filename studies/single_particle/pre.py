@@ -1,0 +1,94 @@
+"""Single-particle study, stage 1: one neo-Hookean disk in a box of four pressure-driven walls.
+
+Writes WORKDIR/scene (scene.toml + bodies.vtu): a disk of radius R = 1 (E = 1, nu = 0.495,
+density 1, plane strain), meshed with about --elements triangles (--element-type T3 or T6), in
+a box of four frictionless walls touching it; pressure stages P/E log-spaced from --p-min to
+--p-max. Reduced units: R = 1, E = 1, density 1.
+
+Quasi-static settings (measured, see README.md): theta = 1 (backward Euler: a step tends to an
+implicit static step with contact), h = 2 (about a third of the period of the slowest
+wall-disk mode), walls of the disk's mass, no wall damping; a stage is equilibrated when phi
+changes by less than 1e-6 (relative) over check_every = 2 steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+# this script is called pre.py: keep its folder off sys.path so that `pre` is the package
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+
+def parameters(pressures, *, element: str, volumetric: str, time_step: float, theta: float, wall_mass: float,
+               phi_tolerance: float, check_every: int, newton_tolerance: float, nlgs_tolerance: float,
+               bounds, poisson: float = 0.495, max_steps: int = 2000) -> dict:
+    """The scene.toml tables of the single-particle study (reduced units)."""
+    return {
+        "schema_version": 1,
+        "materials": {"soft": {"kind": "neo_hookean", "density": 1.0, "young": 1.0, "poisson": poisson,
+                               "element": element, "volumetric": volumetric}},
+        "interactions": [{"between": ["soft", "soft"], "law": "frictionless"}],
+        "walls": {"xmin": bounds[0], "xmax": bounds[1], "ymin": bounds[2], "ymax": bounds[3],
+                  "mass": wall_mass, "control": "pressure", "damping_inertial_number": 0.0},
+        "loading": {"pressures": [float(p) for p in pressures], "phi_tolerance": phi_tolerance,
+                    "inertial_tolerance": 1e-4, "check_every": check_every, "max_steps_per_stage": max_steps,
+                    "gravity": [0.0, 0.0]},
+        "solver": {"time_step": time_step, "theta": theta, "nlgs_tolerance": nlgs_tolerance,
+                   "nlgs_max_sweeps": 20000, "relaxation": 1.0, "skin": 0.05,
+                   "newton_tolerance": newton_tolerance, "newton_max_iterations": 25},
+        "output": {"frames": "stages", "every_steps": 0, "checkpoint_every_steps": 1000},
+    }
+
+
+def write(folder, *, element: str = "T6", elements: int = 92, volumetric: str | None = None,
+          p_min: float = 1e-3, p_max: float = 1.0, stages: int = 16, time_step: float = 2.0,
+          theta: float = 1.0, wall_mass: float | None = None, phi_tolerance: float = 1e-6,
+          check_every: int = 2, newton_tolerance: float = 1e-9, nlgs_tolerance: float = 1e-8,
+          pressures=None) -> Path:
+    """Write the scene folder; returns its path. ``pressures`` overrides the log-spaced stages."""
+    from pre.mesh import reference_disk_mesh
+    from pre.scene import write_scene
+
+    volumetric = volumetric or ("mean_dilatation" if element == "T6" else "standard")
+    mesh = reference_disk_mesh(elements, element).placed((0.0, 0.0), 1.0)
+    p = mesh.points
+    bounds = (float(p[:, 0].min()), float(p[:, 0].max()), float(p[:, 1].min()), float(p[:, 1].max()))
+    if pressures is None:
+        pressures = np.geomspace(p_min, p_max, stages)
+    params = parameters(pressures, element=element, volumetric=volumetric, time_step=time_step, theta=theta,
+                        wall_mass=np.pi if wall_mass is None else wall_mass, phi_tolerance=phi_tolerance,
+                        check_every=check_every, newton_tolerance=newton_tolerance,
+                        nlgs_tolerance=nlgs_tolerance, bounds=bounds)
+    return write_scene(folder, params, np.zeros((1, 2)), np.ones(1), ["soft"],
+                       meshes={0: (np.array(p), np.array(mesh.cells), element)})
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--workdir", required=True, help="study folder; the scene goes to WORKDIR/scene")
+    ap.add_argument("--element-type", choices=("T3", "T6"), default="T6")
+    ap.add_argument("--elements", type=int, default=92, help="target number of triangles (default 92)")
+    ap.add_argument("--volumetric", choices=("standard", "mean_dilatation"), default=None,
+                    help="volumetric term (default: mean_dilatation for T6, standard for T3)")
+    ap.add_argument("--p-min", type=float, default=1e-3, help="first P/E (default 1e-3)")
+    ap.add_argument("--p-max", type=float, default=1.0, help="last P/E (default 1)")
+    ap.add_argument("--stages", type=int, default=16, help="number of log-spaced stages (default 16)")
+    ap.add_argument("--time-step", type=float, default=2.0, help="h in units of R sqrt(rho/E) (default 2)")
+    ap.add_argument("--theta", type=float, default=1.0, help="theta of the scheme (default 1)")
+    ap.add_argument("--wall-mass", type=float, default=None, help="mass of each wall (default pi, the disk's)")
+    ap.add_argument("--phi-tolerance", type=float, default=1e-6, help="equilibrium: relative phi change")
+    ap.add_argument("--check-every", type=int, default=2, help="steps between equilibrium checks")
+    a = ap.parse_args(argv)
+    folder = write(Path(a.workdir) / "scene", element=a.element_type, elements=a.elements, volumetric=a.volumetric,
+                   p_min=a.p_min, p_max=a.p_max, stages=a.stages, time_step=a.time_step, theta=a.theta,
+                   wall_mass=a.wall_mass, phi_tolerance=a.phi_tolerance, check_every=a.check_every)
+    print(f"scene written to {folder}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

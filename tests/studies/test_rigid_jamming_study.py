@@ -1,0 +1,35 @@
+"""The rigid jamming study through its three scripts, on a small sample: files, equilibrium
+stress check (contacts against walls), and no penetration drift."""
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+STUDY = Path(__file__).resolve().parents[2] / "studies" / "rigid_jamming"
+
+
+@pytest.mark.parametrize("mu", [0.2])
+def test_three_stages_end_to_end(tmp_path, mu):
+    w = str(tmp_path / "study")
+    for script, extra in (("pre.py", ["--n", "60", "--mu", str(mu), "--seed", "2"]), ("compute.py", []),
+                          ("post.py", [])):
+        subprocess.run([sys.executable, str(STUDY / script), "--workdir", w, *extra], check=True,
+                       capture_output=True)
+    out = tmp_path / "study" / "out"
+    for name in ("bodies.pvd", "contacts.pvd", "walls.pvd", "history.csv", "post/measures.csv",
+                 "post/force_chains.png", "post/phi_Z_vs_P.png"):
+        assert (out / name).is_file(), name
+    rows = list(csv.DictReader(open(out / "post" / "measures.csv")))
+    assert len(rows) == 3 and all(r["equilibrated"] == "1" for r in rows)
+    for r in rows:
+        assert float(r["P"]) == pytest.approx(float(r["P_walls"]), rel=0.01)  # stress from contacts = walls
+        assert float(r["P_walls"]) == pytest.approx(float(r["pressure_applied"]), rel=0.01)
+        assert 0.70 < float(r["phi"]) < 0.86
+    # no drift: penetration below 1e-3 <d> at every step of the preparation and of the run
+    for hist in (out / "history.csv", tmp_path / "study" / "jamming" / "out" / "history.csv"):
+        pen = np.genfromtxt(hist, delimiter=",", names=True)["max_penetration"]
+        assert pen.max() < 1e-3 * 1.0  # <d> = 1 in the study's units
