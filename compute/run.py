@@ -2,7 +2,10 @@
 
 A stage ends when, between two checks ``check_every`` steps apart, φ varies by less than
 ``phi_tolerance`` (relative) and the inertial number is below ``inertial_tolerance``
-(:func:`compute.walls.inertial_number`). Its last state is written as an equilibrated frame.
+(:func:`compute.walls.inertial_number`), and, when ``force_tolerance`` is set, the contact force
+on every wall balances the applied one within that relative tolerance (slow is not static: a
+damped wall can creep while its force is still out of balance). Its last state is written as an
+equilibrated frame.
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ from compute.errors import SimulationError
 from compute.model import Model
 from compute.scene import read_scene
 from compute.state import State
-from compute.walls import inertial_number
+from compute.frames import wall_forces
+from compute.walls import inertial_number, wall_lengths
 
 CHECKPOINT = "checkpoint/state.npz"
 
@@ -44,6 +48,7 @@ class Run:
         if resume and ckpt.is_file():
             with np.load(ckpt) as data:
                 state = State.from_arrays(dict(data))
+            (self.out / "COMPLETE").unlink(missing_ok=True)
             rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
             for f in (self.out / "frames").glob("*.vtu"):
                 if int(f.stem.rsplit("_", 1)[1]) >= state.frame:
@@ -56,7 +61,7 @@ class Run:
             self.log(f"no checkpoint in {self.out}: starting from the scene")
         for f in (self.out / "frames").glob("*.vtu"):
             f.unlink()
-        for name in ("frames.csv", CHECKPOINT, "FAILED"):
+        for name in ("frames.csv", CHECKPOINT, "FAILED", "COMPLETE"):
             (self.out / name).unlink(missing_ok=True)
         shutil.copy(self.scene.path / "scene.toml", self.out / "scene.toml")
         output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, [])
@@ -72,6 +77,7 @@ class Run:
                 while self.state.stage < len(self.scene.loading.pressures):
                     self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
+            (self.out / "COMPLETE").write_text(f"{self.state.step} steps, {self.state.frame} frames\n")
         except SimulationError as exc:
             self.history.flush()
             (self.out / "FAILED").write_text(f"{exc}\n")
@@ -111,6 +117,7 @@ class Run:
     def _advance(self, pressure: float, wall_speed: float = 0.0) -> None:
         st = self.state
         rep = self.stepper.step(st, pressure, wall_speed)
+        self.last_contacts = rep.contacts
         st.stage_steps += 1
         b = self.model.bounds(st.q)
         self.history.append(dict(
@@ -133,6 +140,10 @@ class Run:
         st, load = self.state, self.scene.loading
         phi = self.model.phi(st.q)
         ok = abs(phi - st.phi_check) < load.phi_tolerance * phi and self._inertial(pressure) < load.inertial_tolerance
+        if ok and load.force_tolerance > 0.0:
+            applied = pressure * wall_lengths(self.model.bounds(st.q))
+            contact = wall_forces(self.last_contacts, self.scene.solver.time_step)
+            ok = bool(np.max(np.abs(contact - applied)) < load.force_tolerance * applied.min())
         st.phi_check = phi
         return bool(ok)
 

@@ -57,6 +57,7 @@ class Loading:
     check_every: int
     max_steps_per_stage: int
     gravity: tuple[float, float]
+    force_tolerance: float = 0.0  # 0: no wall force-balance check
 
 
 @dataclass(frozen=True)
@@ -288,6 +289,7 @@ def _read_loading(r: _Reader, control: str) -> Loading:
         check_every=int(r.number(tab, "check_every", p, low=1, integer=True)),
         max_steps_per_stage=int(r.number(tab, "max_steps_per_stage", p, low=1, integer=True)),
         gravity=(float(gravity[0]), float(gravity[1])),
+        force_tolerance=float(r.number(tab, "force_tolerance", p, low=0.0)) if "force_tolerance" in tab else 0.0,
     )
 
 

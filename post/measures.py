@@ -18,7 +18,12 @@ Definitions (N_p particles, walls are not particles):
                     contact is half a contact (it has one particle end), so that a square lattice
                     in a box has Z = 4 exactly;
     Z_no_rattlers = the same over the non-rattlers and the contacts between them or with walls;
-    Z_bulk        = 2 N_pp / N_p, particle-particle contacts only, all particles.
+    Z_bulk        = 2 N_pp / N_p, particle-particle contacts only, all particles;
+    Z_constraints = 2 (N_pp + N_pw) / N_p over the non-rattlers: every contact, wall contacts
+                    included, counted as one constraint. This is the number to compare with
+                    isostaticity: frictionless disks in a box of four pressure-driven walls have
+                    2 N_p + 4 dofs less 2 global translations, so an isostatic packing has
+                    Z_constraints = 4 + 4 / N_p.
 - Granular stress sigma_ij = (1/V) sum_c f_i^c l_j^c (Love-Weber, paper Sec. 3 before Eq. 1),
   compression positive, over all candidates, wall contacts included with
   l = contact point - centre: it then equals the stress the walls carry at equilibrium.
@@ -141,6 +146,14 @@ def coordination(pairs: np.ndarray, particles: np.ndarray, walls: bool = True) -
         kept = kept[kept[:, 0] >= 0]
     n_particles = int(particles.sum())
     return float(contacts_per_particle(kept, len(particles)).sum() / n_particles) if n_particles else np.nan
+
+
+def constraint_coordination(pairs: np.ndarray, particles: np.ndarray) -> float:
+    """2 (N_pp + N_pw) / N_p over the particles of the mask (N,): each contact among them, or with a
+    wall, counted as one constraint. pairs (K, 2)."""
+    kept = _pairs_among(pairs, particles)
+    n_particles = int(particles.sum())
+    return 2.0 * len(kept) / n_particles if n_particles else np.nan
 
 
 def granular_stress(force: np.ndarray, branch: np.ndarray, volume: float) -> np.ndarray:

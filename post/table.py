@@ -7,7 +7,7 @@ Columns (definitions in :mod:`post.measures`):
 - ``P, q, sigma_xx, sigma_yy, sigma_xy``: granular stress from the contacts (symmetric part);
 - ``P_walls`` mean wall force / length; ``P_rel_diff`` = P / P_walls - 1, the equilibrium check
   (contacts against walls; ~0 on equilibrated frames);
-- ``Z, Z_no_rattlers, Z_bulk`` coordination numbers;
+- ``Z, Z_no_rattlers, Z_bulk, Z_constraints`` coordination numbers;
 - ``n_contacts`` active contacts (pairs of bodies, walls included), ``n_wall_contacts`` those with
   a wall, ``n_rattlers``, ``n_particles``;
 - ``K`` = phi dP/dphi by centred differences over the equilibrated frames; NaN on the other
@@ -27,7 +27,7 @@ from post import measures
 from post.frames import Frame, iter_frames
 
 COLUMNS = ("frame", "time", "step", "stage", "pressure_applied", "equilibrated", "volume", "phi", "P", "P_walls",
-           "P_rel_diff", "q", "sigma_xx", "sigma_yy", "sigma_xy", "Z", "Z_no_rattlers", "Z_bulk", "n_contacts",
+           "P_rel_diff", "q", "sigma_xx", "sigma_yy", "sigma_xy", "Z", "Z_no_rattlers", "Z_bulk", "Z_constraints", "n_contacts",
            "n_wall_contacts", "n_rattlers", "n_particles", "K")
 
 Row = dict[str, float | int | bool]
@@ -60,6 +60,7 @@ def measure_frame(frame: Frame, min_contacts: int = 2, threshold: float = 1e-9) 
         "Z": measures.coordination(pairs, everyone),
         "Z_no_rattlers": measures.coordination(pairs, ~rattler),
         "Z_bulk": measures.coordination(pairs, everyone, walls=False),
+        "Z_constraints": measures.constraint_coordination(pairs, ~rattler),
         "n_contacts": len(pairs), "n_wall_contacts": int(np.sum(pairs[:, 0] < 0)),
         "n_rattlers": int(rattler.sum()), "n_particles": bodies.n_bodies,
     }

@@ -37,8 +37,9 @@ def default_parameters(bounds: tuple[float, float, float, float], friction: floa
                   "mass": density * np.pi * mean_diameter**2 / 4 * width / mean_diameter,
                   "control": "pressure", "damping_inertial_number": 1e-3},
         "loading": {"pressures": list(pressures), "phi_tolerance": 1e-4, "inertial_tolerance": 1e-4,
+                    "force_tolerance": 1e-3,
                     "check_every": 20, "max_steps_per_stage": 200000, "gravity": [0.0, 0.0]},
-        "solver": {"time_step": 0.02 * t_ref, "theta": 1.0, "nlgs_tolerance": 1e-4,
+        "solver": {"time_step": 0.02 * t_ref, "theta": 1.0, "nlgs_tolerance": 1e-6,
                    "nlgs_max_sweeps": 2000, "relaxation": 1.0, "skin": 0.1},
         "output": {"frames": "stages", "every_steps": 0, "checkpoint_every_steps": 1000},
     }

@@ -26,6 +26,7 @@ def test_square_lattice_is_exact(lattice):
         assert row["phi"] == pytest.approx(np.pi / 4, rel=1e-12)
         assert row["Z"] == row["Z_no_rattlers"] == 4.0
         assert row["Z_bulk"] == 2 * 24 / 16          # 2 N_pp / N_p without the 16 wall contacts
+        assert row["Z_constraints"] == 2 * (24 + 16) / 16  # 4 + 4/n for an n x n lattice (n = 4)
         assert (row["n_contacts"], row["n_wall_contacts"], row["n_rattlers"]) == (40, 16, 0)
 
 
