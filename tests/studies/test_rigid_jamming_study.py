@@ -33,3 +33,19 @@ def test_three_stages_end_to_end(tmp_path, mu):
     for hist in (out / "history.csv", tmp_path / "study" / "jamming" / "out" / "history.csv"):
         pen = np.genfromtxt(hist, delimiter=",", names=True)["max_penetration"]
         assert pen.max() < 1e-3 * 1.0  # <d> = 1 in the study's units
+
+
+def test_frictionless_jammed_packing_is_isostatic(tmp_path):
+    """Frictionless disks jam isostatic: as many contacts (walls included) as force-balance
+    equations, 2 N' + 4 wall equations less 2 global translations, i.e. Z_constraints = 4 + 4/N'
+    over the N' non-rattlers (isostaticity of frictionless jamming: an independent count)."""
+    from post.table import measure_output
+    from pre.jamming import jammed_rigid_scene
+
+    jammed_rigid_scene(tmp_path, 50, 0.0, 5, [1.0], log=lambda m: None)
+    row = measure_output(tmp_path / "jamming" / "out", min_contacts=3)[-1]
+    n = row["n_particles"] - row["n_rattlers"]
+    assert row["equilibrated"] == 1
+    assert row["Z_constraints"] == pytest.approx(4 + 4 / n, abs=0.1)
+    assert row["P"] == pytest.approx(row["P_walls"], rel=0.01)
+    assert 0.75 < row["phi"] < 0.85
