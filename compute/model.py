@@ -34,7 +34,6 @@ class Model:
         self.diameter = scene.mean_diameter
         densities = [m.density for m in scene.materials.values()]
         self.density = float(np.mean(densities))
-        self.has_friction = bool(np.any(self.friction > 0.0))
 
     def make_stepper(self):
         """The time stepper for this model."""

@@ -12,6 +12,19 @@ import pytest
 STUDY = Path(__file__).resolve().parents[2] / "studies" / "rigid_jamming"
 
 
+def _opens_in_pyvista(study: Path, n_frames: int) -> None:
+    """The prepared scene and every .pvd series open with pyvista (ParaView's reader, VTK)."""
+    import pyvista
+
+    scene = pyvista.read(study / "scene" / "bodies.vtu")
+    assert scene.n_cells == 60 and "radius" in scene.cell_data
+    for series in ("bodies", "contacts", "walls"):
+        reader = pyvista.get_reader(str(study / "out" / f"{series}.pvd"))
+        assert len(reader.time_values) == n_frames
+        reader.set_active_time_point(n_frames - 1)
+        assert reader.read()[0].n_cells > 0
+
+
 @pytest.mark.parametrize("mu", [0.2])
 def test_three_stages_end_to_end(tmp_path, mu):
     w = str(tmp_path / "study")
@@ -23,6 +36,7 @@ def test_three_stages_end_to_end(tmp_path, mu):
     for name in ("bodies.pvd", "contacts.pvd", "walls.pvd", "history.csv", "post/measures.csv",
                  "post/force_chains.png", "post/phi_Z_vs_P.png"):
         assert (out / name).is_file(), name
+    _opens_in_pyvista(tmp_path / "study", n_frames=3)
     rows = list(csv.DictReader(open(out / "post" / "measures.csv")))
     assert len(rows) == 3 and all(r["equilibrated"] == "1" for r in rows)
     for r in rows:
