@@ -218,7 +218,15 @@ class _StepFailure(Exception):
 
 
 class _BodySolver:
-    """Factorised effective matrix of one deformable body, kept while it stays valid."""
+    """Factorised Newton matrix of one deformable body, kept while it stays valid.
+
+    The factorisation is scipy's SuperLU in symmetric mode (symmetric ordering, no pivoting:
+    an LDL^T in disguise), so that the signs of U's diagonal give the matrix's inertia (the
+    Delassus operator needs a positive definite matrix). ``level`` is the stabilisation of
+    the factorised matrix (see DeformableStepper).
+    """
+
+    SHIFTS = (0.1, 1.0, 10.0)  # levels 2, 3, 4: + h^2 theta^2 s mu / (rho R^2) M (last resorts)
 
     def __init__(self, body: FEBody, dofs: slice):
         self.body, self.dofs = body, dofs
@@ -227,16 +235,44 @@ class _BodySolver:
         self.key = None
         self.cache: dict = {}
         self.scale = 1.0
+        self.level = 0
 
-    def prepare(self, m_data: np.ndarray, key: tuple, change_limit: float, force: bool) -> bool:
-        """Factorise M_hat (values m_data) unless the kept factorisation is still valid.
-        Returns True if it factorised."""
+    def prepare(self, data: np.ndarray, geometric, key: tuple, change_limit: float, force: bool) -> bool:
+        """Factorise M_hat (values ``data`` (nnz,) in the body's CSR pattern) unless the kept
+        factorisation is still valid: same key (h, theta) and no entry changed by more than
+        change_limit x the largest. If M_hat is not positive definite, factorise the first
+        positive definite of M_hat - G (level 1, G = ``geometric()`` (nnz,), the volumetric
+        geometric stiffness x h^2 theta^2) and M_hat - G + h^2 theta^2 s mu/(rho R^2) M (levels
+        2.., s in SHIFTS, R the body's radius: a stiffness proportional to the mass).
+        Returns True if it factorised; raises _StepFailure if none is positive definite."""
         if self.lu is not None and not force and key == self.key:
-            if np.max(np.abs(m_data - self.data)) <= change_limit * self.scale:
+            if np.max(np.abs(data - self.data)) <= change_limit * self.scale:
                 return False
-        self.lu = spla.splu(self.body.csr(m_data).tocsc())
-        self.data = m_data.copy()
-        self.scale = float(np.max(np.abs(m_data)))
+        g = None
+        h, theta = key
+        b = self.body
+        unit = (h * theta) ** 2 * b.material.mu / (b.material.density * b.reference_areas.sum() / np.pi)
+        first = self.level if key == self.key else 0  # start where the last factorisation ended
+        for level in range(first, 2 + len(self.SHIFTS)):
+            if level == 0:
+                values = data
+            else:
+                g = geometric() if g is None else g
+                values = data - g if level == 1 else data - g + self.SHIFTS[level - 2] * unit * b.mass.data
+            try:
+                lu = spla.splu(self.body.csr(values).tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                               options=dict(SymmetricMode=True))
+            except RuntimeError:  # exactly singular
+                continue
+            if np.all(lu.U.diagonal() > 0.0):
+                break
+        else:
+            raise _StepFailure("the Newton matrix M + h^2 theta^2 K_t is not positive definite, even without its "
+                               f"volumetric geometric part and with a mass-proportional stiffness "
+                               f"{self.SHIFTS[-1]:g} mu/(rho R^2)")
+        self.lu, self.level = lu, level
+        self.data = data.copy()
+        self.scale = float(np.max(np.abs(data)))
         self.key = key
         self.cache = {}
         return True
@@ -279,10 +315,12 @@ class DeformableStepper(Stepper):
         self.newton_max_iterations = s.newton_max_iterations
         self.solvers = [_BodySolver(b, model.layout.body_dofs(k)) for k, b in enumerate(model.bodies)]
         self.length = model.diameter
-        self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "cuts": 0, "nlgs_sweeps": 0}
+        self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "cuts": 0, "nlgs_sweeps": 0,
+                      "stabilised_factorizations": 0}
         self._step_index = 0
         self._n_rigid_contacts = 0
         self._backtracks = 0
+
 
     # --- the step --------------------------------------------------------------------------
     def step(self, state: State, pressure: float, wall_speed: float = 0.0) -> DeformableStepReport:
@@ -308,7 +346,9 @@ class DeformableStepper(Stepper):
         except _StepFailure as exc:
             if depth >= self.MAX_CUTS:
                 raise SimulationError(f"step {self._step_index + 1}: {exc}; the step was cut {depth} times "
-                                      f"(h = {self.h_nominal:.4g} -> {h:.4g}) without success") from None
+                                      f"(h = {self.h_nominal:.4g} -> {h:.4g}) without success: the load increment "
+                                      f"or the time step is too large for this mesh (add intermediate pressure "
+                                      f"stages or lower solver.time_step)") from None
             _restore(state, snap)
             self.stats["cuts"] += 1
             first = self._advance(state, pressure, wall_speed, 0.5 * h, depth + 1)
@@ -335,11 +375,12 @@ class DeformableStepper(Stepper):
         v_free0, diag_dofs, diag = self.free_velocity(state, pressure, wall_speed)
         blocks = self._contact_dofs(contacts)
         v = v_free0.copy()  # deformable part: v^- as the first Newton iterate
-        key = (h, th)
+        self._j_n = [sol.body.jacobians(m.body_nodes(state.q, k)) for k, sol in enumerate(self.solvers)]
         force = [False] * len(self.solvers)
         stale = [False] * len(self.solvers)
-        sweeps_total, n_fact, err_prev = 0, 0, np.inf
+        sweeps_total, n_fact, n_stab, err_prev = 0, 0, 0, np.inf
         tol = self.newton_tolerance * self.length
+        history: list = []
         for it in range(1, self.newton_max_iterations + 1):
             v_free = v_free0.copy()
             dense = []
@@ -350,14 +391,24 @@ class DeformableStepper(Stepper):
                     sys = sol.body.theta_system(v[d], x_n, state.v[d], self.f_gravity[d], self.f_gravity[d], h, th)
                 except InvertedElementError as exc:
                     raise _StepFailure(self._inverted(k, exc, "x_theta", it)) from None
-                if not np.all(np.isfinite(sys.residual)):
+                residual_b = sys.residual
+                if not np.all(np.isfinite(residual_b)):
                     raise _StepFailure(f"body {m.deformable_ids[k]}: non-finite internal forces "
                                        f"(Newton iteration {it})")
-                refactored = sol.prepare(sys.matrix.data, key, self.REFACTOR_CHANGE, force[k])
+                body, x_theta = sol.body, sys.x_theta
+
+                def geometric(body=body, x_theta=x_theta):
+                    return (h * th) ** 2 * body.volumetric_geometric_data(x_theta)
+
+                try:
+                    refactored = sol.prepare(sys.matrix.data, geometric, (h, th), self.REFACTOR_CHANGE, force[k])
+                except _StepFailure as exc:
+                    raise _StepFailure(f"body {m.deformable_ids[k]}: {exc} (Newton iteration {it}, h = {h:.4g})")
+                n_stab += refactored and sol.level > 0
                 n_fact += refactored
                 stale[k] = not refactored
                 force[k] = False
-                v_free[d] = v[d] - sol.solve(sys.residual)
+                v_free[d] = v[d] - sol.solve(residual_b)
                 if k in blocks:
                     local = blocks[k]
                     c = sol.columns(local)[1]
@@ -374,6 +425,8 @@ class DeformableStepper(Stepper):
             self._recover_interior(contacts, blocks, v_free, v_new)
             if not np.all(np.isfinite(v_new)):
                 raise _StepFailure(f"non-finite velocities at Newton iteration {it}")
+            if self.ANDERSON:
+                v_new = self._anderson(history, v, v_new)
             v_new = self._admissible(state, v, v_new, h)
             err = h * th * float(np.max(np.abs(v_new - v))) if len(v) else 0.0
             v = v_new
@@ -388,15 +441,9 @@ class DeformableStepper(Stepper):
         else:
             raise _StepFailure(f"Newton did not converge in {self.newton_max_iterations} iterations "
                                f"(last position correction {err:.3g}, tolerance {tol:.3g})")
-        if th < 1.0:  # x_new is not x_theta: check it too
-            for k, sol in enumerate(self.solvers):
-                d = sol.dofs
-                x_new = m.body_nodes(state.q, k) + h * ((1 - th) * state.v[d] + th * v[d]).reshape(-1, 2)
-                bad = sol.body.inverted_elements(x_new)
-                if bad.size:
-                    raise _StepFailure(self._inverted(k, InvertedElementError(bad), "the end of the step", it))
         self.stats["newton_iterations"] += it
         self.stats["factorizations"] += n_fact
+        self.stats["stabilised_factorizations"] += n_stab
         self.stats["nlgs_sweeps"] += sweeps_total
         rep = self.finish(state, v, contacts, sweeps_total, residual)
         return DeformableStepReport(rep.sweeps, rep.residual, rep.n_contacts, rep.max_penetration, rep.contacts,
@@ -409,29 +456,60 @@ class DeformableStepper(Stepper):
 
     # --- helpers -----------------------------------------------------------------------------
     MAX_BACKTRACKS = 12
+    ANDERSON = 4
+    JACOBIAN_RATIO = 0.5
+
+    def _anderson(self, history: list, v: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """Anderson acceleration of the Newton fixed-point map v -> g = G(v) (depth ANDERSON).
+
+        With a kept or a stabilised factorisation the iteration is a modified Newton, linearly
+        convergent; mixing the last iterates (Walker & Ni 2011) restores fast convergence. The
+        mixed iterate is G's fixed point when the iteration has converged."""
+        history.append((v.copy(), g.copy()))
+        if len(history) > self.ANDERSON + 1:
+            history.pop(0)
+        if len(history) < 2:
+            return g
+        f = np.array([gi - vi for vi, gi in history])         # (m + 1, n) residuals
+        gs = np.array([gi for _, gi in history])
+        df = np.diff(f, axis=0).T
+        dg = np.diff(gs, axis=0).T
+        coef, *_ = np.linalg.lstsq(df, f[-1], rcond=1e-10)
+        out = g - dg @ coef
+        return out if np.all(np.isfinite(out)) else g
 
     def _admissible(self, state: State, v: np.ndarray, v_new: np.ndarray, h: float) -> np.ndarray:
         """Backtracking on the Newton update: v + a (v_new - v), a = 1, 1/2, 1/4, ..., the first
-        for which no element is inverted at x_theta or x_new (a Newton step from a linearised
-        contact solution may overshoot a large load increment). Raises _StepFailure if none."""
+        for which every element keeps J(x) / J(x_n) within [JACOBIAN_RATIO, 1 / JACOBIAN_RATIO]
+        at x_theta and x_new (a Newton step from a linearised contact solution may overshoot a
+        large load increment; no element really changes its area that much in one step). Raises
+        _StepFailure if none is found."""
         m, th = self.model, self.theta
+        lo, hi = self.JACOBIAN_RATIO, 1.0 / self.JACOBIAN_RATIO
         a = 1.0
         for _ in range(self.MAX_BACKTRACKS):
             trial = v + a * (v_new - v) if a < 1.0 else v_new
-            ok = True
+            bad = None
             for k, sol in enumerate(self.solvers):
                 d = sol.dofs
                 x_n = m.body_nodes(state.q, k)
-                x_theta, x_new = sol.body.theta_positions(x_n, state.v[d], trial[d], h, th)
-                if sol.body.inverted_elements(x_theta).size or (th < 1.0 and sol.body.inverted_elements(x_new).size):
-                    ok = False
+                j_n = self._j_n[k]
+                for x in sol.body.theta_positions(x_n, state.v[d], trial[d], h, th)[: 1 if th == 1.0 else 2]:
+                    ratio = sol.body.jacobians(x) / j_n
+                    worst = ~((ratio >= lo) & (ratio <= hi)).all(axis=1)
+                    if worst.any():
+                        bad = (k, np.flatnonzero(worst), float(np.nanmin(ratio)))
+                        break
+                if bad is not None:
                     break
-            if ok:
+            if bad is None:
                 self._backtracks += a < 1.0
                 return trial
             a *= 0.5
-        raise _StepFailure(self._inverted(k, InvertedElementError(sol.body.inverted_elements(x_theta)),
-                                          "x_theta even after backtracking", -1))
+        k, els, r = bad
+        raise _StepFailure(f"body {int(m.deformable_ids[k])}: {els.size} element(s) {els[:10].tolist()} would change "
+                           f"their area by more than a factor {hi:g} in one step (J/J_n down to {r:.3g}) even "
+                           f"after {self.MAX_BACKTRACKS} backtracking halvings of the Newton update (h = {h:.4g})")
 
     def _contact_dofs(self, contacts: Contacts) -> dict[int, np.ndarray]:
         """{deformable index: sorted local dofs (m,) touched by contact rows}."""

@@ -143,6 +143,10 @@ def narrow_phase(model, state: State, centres: np.ndarray | None = None) -> Cont
     parts.append(c)
 
     out = Contacts.concatenate(parts)
+    # entries that carry no impulse (zero normal row, and a zero tangential row or no friction)
+    # are dropped: the dense compliance blocks then cover fewer dofs (half of them for walls)
+    idle = (out.hn == 0.0) & ((out.mu == 0.0)[:, None] | (out.ht == 0.0))
+    out.dof[idle] = -1
     out.impulse[:] = np.concatenate([state.impulses[f] for f in FAMILIES]) if len(out) else np.zeros((0, 2))
     return out
 

@@ -265,6 +265,41 @@ def _assemble_internal(
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _volumetric_geometric(
+    x: np.ndarray, cells: np.ndarray, dndX: np.ndarray, wdV: np.ndarray, hessian: np.ndarray,
+    kappa: float, mean_dilatation: bool, kmap: np.ndarray, kdata: np.ndarray,
+) -> None:
+    """kdata (nnz,) <- the volumetric geometric part of K_t, sum U'(J-bar) H (module
+    docstring), with J-bar per quadrature point (standard) or per element (mean dilatation)."""
+    n_elem, n_q, n_en, _ = dndX.shape
+    xe = np.empty((n_en, 2))
+    F = np.empty((2, 2))
+    kdata[:] = 0.0
+    for e in range(n_elem):
+        _gather(x, cells[e], xe)
+        v = 0.0
+        V = 0.0
+        for q in range(n_q):
+            J = _deformation_gradient(xe, dndX[e, q], F)
+            w = wdV[e, q]
+            if mean_dilatation:
+                v += w * J
+                V += w
+                continue
+            dU = volumetric_response(J, kappa)[1]
+            for a in range(n_en):
+                for b in range(n_en):
+                    kdata[kmap[e, 2 * a, 2 * b + 1]] += dU * hessian[q, a, b]
+                    kdata[kmap[e, 2 * a + 1, 2 * b]] -= dU * hessian[q, a, b]
+        if mean_dilatation:
+            dU = volumetric_response(v / V, kappa)[1]
+            for a in range(n_en):
+                for b in range(n_en):
+                    kdata[kmap[e, 2 * a, 2 * b + 1]] += dU * hessian[0, a, b]
+                    kdata[kmap[e, 2 * a + 1, 2 * b]] -= dU * hessian[0, a, b]
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _strain_energy(
     x: np.ndarray, cells: np.ndarray, dndX: np.ndarray, wdV: np.ndarray, mu: float,
     kappa: float, mean_dilatation: bool,
@@ -428,7 +463,9 @@ class FEBody:
     Attributes: ``X`` (n, 2), ``cells``, ``n_nodes``, ``n_dof`` = 2n; ``mass`` CSR (2n, 2n)
     consistent mass matrix (explicit zeros in the x-y couplings: the pattern, whose read-only
     index arrays all the body's matrices share, is that of K_t); ``reference_areas``
-    (n_elem,); ``boundary`` (n_b,) CCW boundary loop.
+    (n_elem,); ``boundary`` (n_b,) CCW boundary loop; ``area_hessian_data`` (nnz,) the
+    constant Hessian of the body's current area, d2 a / dx2, in the same CSR pattern (nonzero
+    on boundary nodes only).
     """
 
     def __init__(
@@ -465,6 +502,17 @@ class FEBody:
         self._indptr, self._indices, self._kmap = _sparsity(cells, self.n_dof)
         self.reference_areas = self._wdV.sum(axis=1)
         self.boundary = boundary_loop(cells, self.element)
+
+        # Hessian of the body's area (a constant matrix, nonzero on boundary nodes only: the
+        # element contributions cancel at interior nodes), in the CSR pattern
+        n_en = self.element.n_nodes
+        he = np.zeros((cells.shape[0], n_en, 2, n_en, 2))
+        h_ab = _area_hessians(self.element, True)[0]
+        he[:, :, 0, :, 1] = h_ab
+        he[:, :, 1, :, 0] = -h_ab
+        area_hessian = np.zeros(self._indices.size)
+        np.add.at(area_hessian, self._kmap, he.reshape(cells.shape[0], 2 * n_en, 2 * n_en))
+        self.area_hessian_data = area_hessian
 
         m_e = material.density * np.einsum("eq,qa,qb->eab", self._wdV_m, self._N_m, self._N_m)
         mass = np.zeros(self._indices.size)
@@ -542,6 +590,29 @@ class FEBody:
         da = self._wdV_m * _jacobians(x, self.cells, self._dndX_m)  # (n_elem, n_q)
         moment = np.einsum("eq,qa,eai->i", da, self._N_m, x[self.cells])
         return moment / da.sum()
+
+    def volumetric_geometric_data(self, x: np.ndarray) -> np.ndarray:
+        """Values (nnz,) of the volumetric geometric stiffness, the part sum U'(J-bar) H of
+        K_t (module docstring) in the body's CSR pattern. U' = -pressure, and H (the Hessian of
+        the current area of an element or a quadrature point's share) is indefinite: under
+        compression this term gives K_t negative directions along a pressed boundary (the
+        boundary-node 'wrinkling' modes) that only the contacts hold."""
+        x = self._positions(x)
+        kdata = np.empty(self._indices.size)
+        _volumetric_geometric(x, self.cells, self._dndX, self._wdV, self._area_hessian, self.material.kappa,
+                              self._mean_dilatation, self._kmap, kdata)
+        return kdata
+
+    def mean_pressure(self, x: np.ndarray) -> float:
+        """Area-weighted mean of the volumetric pressure -U'(J) (J-bar per element under mean
+        dilatation), compression positive, at positions x (n, 2)."""
+        J = self.jacobians(x)
+        w = self._wdV
+        if self._mean_dilatation:
+            J = (w * J).sum(axis=1, keepdims=True) / w.sum(axis=1, keepdims=True)
+            w = w.sum(axis=1, keepdims=True)
+        dU = 0.5 * self.material.kappa * (J - 1.0 / J)
+        return float(-(w * dU).sum() / w.sum())
 
     def jacobians(self, x: np.ndarray) -> np.ndarray:
         """J = det F (n_elem, n_q) at the stiffness quadrature points for positions x (n, 2)."""
