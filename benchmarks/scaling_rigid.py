@@ -2,7 +2,7 @@
 
 For each N a frictional packing (μ = 0.2) is jammed by the pre stage's compression (the same
 settings as the rigid jamming study); the measures are then taken over steps of the jammed
-packing under pressure (warm-started NLGS, tolerance 1e-4), all in one process, one after the
+packing under pressure (warm-started NLGS, tolerance 1e-6), all in one process, one after the
 other. Writes benchmarks/results/scaling_rigid.md.
 
     python benchmarks/scaling_rigid.py [--sizes 100 400 1500 6000] [--steps 200]
