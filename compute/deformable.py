@@ -20,24 +20,39 @@ rows H at q_n. Newton iterations k = 0, 1, ... linearise R_b at v^k:
     v^{k+1}_b = v_free,b + M_hat_b^-1 (H r)_b                     (interior velocities)
 
 until h theta |v^{k+1} - v^k|_inf <= newton_tolerance x <d> (position correction relative to
-the mean diameter). At convergence R_b(v) = (H r)_b exactly, whatever factorisation was used,
-so a factorisation is kept while M_hat barely changes: it is refactorised when the largest
-change of its entries since the factorisation exceeds ``REFACTOR_CHANGE`` of its largest entry,
-when h or theta changed, or when an iteration with the kept factorisation contracted the
-correction by less than ``SLOW_CONTRACTION``. The dense compliance block of a body is
-recomputed only with a new factorisation or a new set of contact dofs.
+the mean diameter), the contact impulses warm-started from one iteration to the next and from
+step to step. At convergence R_b(v) = (H r)_b exactly, whatever matrix the iterations used
+(a modified Newton converges to the same solution), which the following devices exploit:
 
-Failures are never silent: an inverted element (at x_theta or at the end of the step), a
-non-finite value, or a Newton loop that does not converge in newton_max_iterations makes the
-step restart from its initial state with h/2 (two half steps), up to ``MAX_CUTS`` times; then
-:class:`compute.errors.SimulationError` names the step, the body, the elements and h. A step
-that needed cuts still advances time by h and counts as one step; its last impulses are
-rescaled to the full h so that forces = impulse / h stay right in frames and warm starts.
+- Reuse: a factorisation is kept while M_hat barely changes (largest entry change below
+  ``REFACTOR_CHANGE`` of the largest entry, same h and theta); it is redone when an iteration
+  with the kept one contracted the correction by less than ``SLOW_CONTRACTION``. The dense
+  compliance block C_b = E^T M_hat_b^-1 E on the contact dofs is recomputed only with a new
+  factorisation or a new set of contact dofs, by sparse forward substitutions in the
+  symmetric (LDL^T) factorisation.
+- Positive definiteness: the Delassus operator needs a positive definite M_hat, which a
+  pressed body loses at large h: its volumetric geometric stiffness U'(J) d2(area)/dx2 (U' is
+  minus the pressure) is indefinite along a pressed boundary (boundary nodes 'wrinkling'
+  against the wall, eigenvalues -20 E/(rho R^2) at P/E = 0.25 with 92 T6 elements) and the
+  moment of the compressive loads makes the rigid rotation unstable (sum_a x_a . f_a < 0).
+  The contacts hold both, so the constrained problem is stable; the factorisation (SuperLU in
+  symmetric mode, whose pivots give the inertia) then falls back to M_hat without the
+  volumetric geometric stiffness, then adds a mass-proportional stiffness
+  (:class:`_BodySolver`). Measured in the single-particle study: with h = 10 every stage
+  above P/E = 0.01 uses the first fallback; it converges in 5 to 15 iterations.
+- Anderson acceleration (depth ``ANDERSON``) of the fixed-point iteration v -> v^{k+1}
+  restores fast convergence when the iteration is a modified Newton.
+- Backtracking: a Newton update that would change some element's area by more than a factor
+  2 in one step (``JACOBIAN_RATIO``) is halved until it does not (large load increments
+  overshoot from a linearised contact solution).
 
-Frames. ``compute.frames.write_frame_files`` evaluates the contacts of a frame with
-``compute.detection.narrow_phase``, which knows only the rigid families. Until frames.py asks
-the model (``model.frame_contacts(state)``, see :meth:`DeformableModel.frame_contacts`), this
-module routes that one call through the model (``_FramesDetection``), for deformable models only.
+Failures are never silent: an inverted element, a non-finite value, a Newton matrix that no
+fallback makes positive definite, or a Newton loop that does not converge in
+newton_max_iterations makes the step restart from its initial state with h/2 (two half
+steps), up to ``MAX_CUTS`` times; then :class:`compute.errors.SimulationError` names the step,
+the body, the elements and h, and the state is left as it was before the step. A step that
+needed cuts still advances time by h and counts as one step; its last impulses are rescaled
+to the full h so that forces = impulse / h stay right in frames and warm starts.
 """
 
 from __future__ import annotations
@@ -45,6 +60,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import scipy.sparse.linalg as spla
 
@@ -99,7 +115,6 @@ class DeformableModel(Model):
         self.loop_start = np.concatenate([[0], np.cumsum([len(lp) for lp in loops])]).astype(np.int64)
         self._loop_body = np.repeat(np.arange(nd), np.diff(self.loop_start))
         self._reference = np.concatenate([b.X for b in self.bodies])
-        _install_frames_hook()
 
     def make_stepper(self):
         return DeformableStepper(self)
@@ -186,30 +201,6 @@ class DeformableModel(Model):
                                      deformable_detection.narrow_phase(self, state, centres)])
 
 
-class _FramesDetection:
-    """Stand-in for the ``detection`` module inside compute.frames: ``narrow_phase`` asks the
-    model for its frame contacts when it has them, everything else is compute.detection's."""
-
-    def __init__(self, module):
-        self._module = module
-
-    def __getattr__(self, name):
-        return getattr(self._module, name)
-
-    def narrow_phase(self, model, state):
-        if hasattr(model, "frame_contacts"):
-            return model.frame_contacts(state)
-        return self._module.narrow_phase(model, state)
-
-
-def _install_frames_hook() -> None:
-    """TEMPORARY: see the module docstring (remove once frames.py calls model.frame_contacts)."""
-    import compute.frames as frames
-
-    if not isinstance(frames.detection, _FramesDetection) and "frame_contacts" not in frames.write_frame_files.__code__.co_names:
-        frames.detection = _FramesDetection(frames.detection)
-
-
 # ------------------------------------------------------------------------------ the stepper
 
 
@@ -264,13 +255,15 @@ class _BodySolver:
                                options=dict(SymmetricMode=True))
             except RuntimeError:  # exactly singular
                 continue
-            if np.all(lu.U.diagonal() > 0.0):
+            pivots = lu.U.diagonal()
+            if np.all(pivots > 0.0):
                 break
         else:
             raise _StepFailure("the Newton matrix M + h^2 theta^2 K_t is not positive definite, even without its "
                                f"volumetric geometric part and with a mass-proportional stiffness "
                                f"{self.SHIFTS[-1]:g} mu/(rho R^2)")
-        self.lu, self.level = lu, level
+        self.lu, self.level, self.pivots = lu, level, pivots
+        self._lower = None
         self.data = data.copy()
         self.scale = float(np.max(np.abs(data)))
         self.key = key
@@ -280,16 +273,60 @@ class _BodySolver:
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         return self.lu.solve(rhs)
 
-    def columns(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Z = M_hat^-1 E (n_dof, m) for the unit columns of the local dofs (m,), and C = Z[local]."""
+    def compliance(self, local: np.ndarray) -> np.ndarray:
+        """C = E^T M_hat^-1 E (m, m) for the unit columns E of the local dofs (m,).
+
+        With the symmetric factorisation P M_hat P^T = L D L^T (SuperLU in symmetric mode:
+        U = D L^T), C = Y^T D^-1 Y with Y = L^-1 P E: only sparse forward substitutions from
+        unit vectors (:func:`_unit_lower_columns`), much cheaper than m full solves."""
         key = local.tobytes()
         if key not in self.cache:
-            e = np.zeros((self.body.n_dof, len(local)))
-            e[local, np.arange(len(local))] = 1.0
-            z = self.solve(e)
-            c = z[local]
-            self.cache = {key: (z, np.ascontiguousarray(0.5 * (c + c.T)))}
+            if self._lower is None:
+                L = self.lu.L.tocsc()
+                self._lower = (L.indptr.astype(np.int64), L.indices.astype(np.int64), L.data)
+            rows = self.lu.perm_r[local].astype(np.int64)
+            c = _weighted_gram(_unit_lower_columns(*self._lower, rows, self.body.n_dof), 1.0 / self.pivots)
+            self.cache = {key: np.ascontiguousarray(0.5 * (c + c.T))}
         return self.cache[key]
+
+
+@numba.njit(cache=True)
+def _weighted_gram(Y, w):
+    """C = Y diag(w) Y^T (m, m) for a sparse-in-practice Y (m, n), w (n,)."""
+    m, n = Y.shape
+    C = np.zeros((m, m))
+    idx = np.empty(m, np.int64)
+    for k in range(n):
+        cnt = 0
+        for j in range(m):
+            if Y[j, k] != 0.0:
+                idx[cnt] = j
+                cnt += 1
+        for a in range(cnt):
+            ya = Y[idx[a], k] * w[k]
+            for b in range(cnt):
+                C[idx[a], idx[b]] += ya * Y[idx[b], k]
+    return C
+
+
+@numba.njit(cache=True)
+def _unit_lower_columns(indptr, indices, data, rows, n):
+    """Y (m, n), Y[j] = L^-1 e_rows[j] for L unit lower triangular in CSC (indptr, indices,
+    data); entries on or above the diagonal are ignored."""
+    m = rows.shape[0]
+    Y = np.zeros((m, n))
+    for j in range(m):
+        y = Y[j]
+        y[rows[j]] = 1.0
+        for k in range(rows[j], n):
+            yk = y[k]
+            if yk == 0.0:
+                continue
+            for idx in range(indptr[k], indptr[k + 1]):
+                r = indices[idx]
+                if r > k:
+                    y[r] -= data[idx] * yk
+    return Y
 
 
 @dataclass
@@ -316,19 +353,21 @@ class DeformableStepper(Stepper):
         self.solvers = [_BodySolver(b, model.layout.body_dofs(k)) for k, b in enumerate(model.bodies)]
         self.length = model.diameter
         self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "cuts": 0, "nlgs_sweeps": 0,
-                      "stabilised_factorizations": 0}
+                      "stabilised_factorizations": 0, "backtracks": 0}
         self._step_index = 0
         self._n_rigid_contacts = 0
-        self._backtracks = 0
-
 
     # --- the step --------------------------------------------------------------------------
     def step(self, state: State, pressure: float, wall_speed: float = 0.0) -> DeformableStepReport:
         """Advance ``state`` by h (cutting the step when it fails; see the module docstring)."""
         t0, s0, h = state.time, state.step, self.h_nominal
         self._step_index = s0
+        snap = _snapshot(state)
         try:
             rep = self._advance(state, pressure, wall_speed, h, 0)
+        except SimulationError:
+            _restore(state, snap)
+            raise
         finally:
             self.h = h
         state.time, state.step = t0 + h, s0 + 1
@@ -411,7 +450,7 @@ class DeformableStepper(Stepper):
                 v_free[d] = v[d] - sol.solve(residual_b)
                 if k in blocks:
                     local = blocks[k]
-                    c = sol.columns(local)[1]
+                    c = sol.compliance(local)
                     if not np.all(np.diag(c) > 0.0):
                         raise _StepFailure(f"body {m.deformable_ids[k]}: effective matrix M + h^2 theta^2 K_t not "
                                            f"positive definite on its contact dofs (Newton iteration {it}, h = {h:.4g})")
@@ -425,13 +464,14 @@ class DeformableStepper(Stepper):
             self._recover_interior(contacts, blocks, v_free, v_new)
             if not np.all(np.isfinite(v_new)):
                 raise _StepFailure(f"non-finite velocities at Newton iteration {it}")
+            # convergence on the plain Newton correction G(v) - v (not on an accelerated one)
+            err = h * th * float(np.max(np.abs(v_new - v))) if len(v) else 0.0
+            if err <= tol:
+                v = self._admissible(state, v, v_new, h)
+                break
             if self.ANDERSON:
                 v_new = self._anderson(history, v, v_new)
-            v_new = self._admissible(state, v, v_new, h)
-            err = h * th * float(np.max(np.abs(v_new - v))) if len(v) else 0.0
-            v = v_new
-            if err <= tol:
-                break
+            v = self._admissible(state, v, v_new, h)
             if it > 1 and err > 1e6 * max(err_prev, tol):
                 raise _StepFailure(f"Newton diverges (position correction {err:.3g} after {err_prev:.3g}, "
                                    f"iteration {it})")
@@ -503,7 +543,7 @@ class DeformableStepper(Stepper):
                 if bad is not None:
                     break
             if bad is None:
-                self._backtracks += a < 1.0
+                self.stats["backtracks"] += a < 1.0
                 return trial
             a *= 0.5
         k, els, r = bad
@@ -532,11 +572,10 @@ class DeformableStepper(Stepper):
         ok = contacts.dof >= 0
         val = contacts.hn * contacts.impulse[:, :1] + contacts.ht * contacts.impulse[:, 1:]
         np.add.at(hr, contacts.dof[ok], val[ok])
-        for k, local in blocks.items():
+        for k in blocks:
             sol = self.solvers[k]
-            z, _ = sol.columns(local)
             d = sol.dofs
-            v[d] = v_free[d] + z @ hr[d.start + local]
+            v[d] = v_free[d] + sol.solve(hr[d])
 
     def _inverted(self, k: int, exc: InvertedElementError, where: str, it: int) -> str:
         els = exc.elements

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute import detection, output
+from compute import output
 from compute.bodies_io import write_bodies
 from compute.model import Model
 from compute.state import State
@@ -27,7 +27,7 @@ def write_frame_files(out: Path, frame: int, model: Model, state: State, time_st
     Contact geometry is re-evaluated at the current configuration with the last solved impulses,
     so that branch vectors and body positions of the frame agree.
     """
-    contacts = detection.narrow_phase(model, state)
+    contacts = model.frame_contacts(state)
     centres = model.body_centres(state.q)
     ci = centres[contacts.body_i]
     cj = np.where((contacts.body_j < 0)[:, None], contacts.point, centres[np.maximum(contacts.body_j, 0)])

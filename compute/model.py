@@ -69,6 +69,12 @@ class Model:
         c[self.rigid_ids] = self.rigid_view(q)[:, :2]
         return c
 
+    def frame_contacts(self, state: State):
+        """All contacts at the state's configuration with the impulses of its memory (a frame's)."""
+        from compute import detection
+
+        return detection.narrow_phase(self, state)
+
     def current_meshes(self, q: np.ndarray) -> dict:
         """Deformable meshes in the current configuration (none for a rigid model)."""
         return {}

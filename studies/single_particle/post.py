@@ -1,0 +1,113 @@
+"""Single-particle study, stage 3: measures, the fit of Eq. 2 and a figure like the paper's Fig. 5.
+
+Reads the VTK frames of WORKDIR/out through ``post`` and writes WORKDIR/out/post/:
+
+- measures.csv: one row per frame (columns of post.table: pressure_applied, phi = phi_p, the
+  current disk area over the box area, P_walls the mean wall pressure, ...), reduced units
+  (E = 1, R = 1: the scene's Young modulus divides the pressures of the fit and the figure);
+- fit.json: Eq. 2, P_p/E = -b ln[(phi_p,max - phi_p)/(phi_p,max - pi/4)], fitted (b and
+  phi_p,max free, phi_p,0 = pi/4) on the equilibrated frames with P_walls/E <= --fit-p-max
+  and phi_p <= --fit-phi-max; the fitted phi range is stored and printed;
+- single_particle.png: phi_p against P_p/E (P_walls/E), with the fit (paper Fig. 5).
+
+Extra --compare DIR options add other runs (other meshes) to the figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+# this script is called post.py: keep its folder off sys.path so that `post` is the package
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+
+def young_modulus(out: Path) -> float:
+    """E of the (single) neo-Hookean material of the run (out/scene.toml, copied by compute)."""
+    data = tomllib.loads((out / "scene.toml").read_text())
+    soft = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"]
+    if len(soft) != 1:
+        raise SystemExit(f"{out / 'scene.toml'}: expected one neo_hookean material, found {len(soft)}")
+    return float(soft[0]["young"])
+
+
+def label(out: Path) -> str:
+    data = tomllib.loads((out / "scene.toml").read_text())
+    m = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"][0]
+    try:
+        import meshio
+
+        n = sum(len(c.data) for c in meshio.read(out.parent / "scene" / "bodies.vtu").cells)
+    except Exception:  # noqa: BLE001 - the label is cosmetic
+        n = "?"
+    return f"{m['element']}, {n} elements"
+
+
+def curve(out: Path):
+    """(rows, equilibrated P_walls/E (n,), phi_p (n,)) of an output folder."""
+    from post.table import measure_output
+
+    rows = measure_output(out, min_contacts=1)
+    E = young_modulus(out)
+    eq = [r for r in rows if r["equilibrated"]]
+    return rows, np.array([r["P_walls"] for r in eq]) / E, np.array([r["phi"] for r in eq])
+
+
+def fit(p: np.ndarray, phi: np.ndarray, p_max: float, phi_max: float):
+    from post.fits import fit_single_particle
+
+    sel = (p <= p_max) & (phi <= phi_max)
+    if sel.sum() < 3:
+        raise SystemExit(f"fit of Eq. 2: fewer than 3 equilibrated frames with P/E <= {p_max} and "
+                         f"phi <= {phi_max}")
+    return fit_single_particle(phi[sel], p[sel]), int(sel.sum())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--workdir", required=True, help="study folder (reads WORKDIR/out)")
+    ap.add_argument("--fit-p-max", type=float, default=np.inf, help="largest P/E in the fit (default all)")
+    ap.add_argument("--fit-phi-max", type=float, default=0.99,
+                    help="largest phi_p in the fit (default 0.99: coarse meshes fill the box, phi_p -> 1)")
+    ap.add_argument("--compare", action="append", default=[], metavar="DIR",
+                    help="another study folder to draw in the figure (repeatable)")
+    a = ap.parse_args(argv)
+    from post.table import write_measures
+
+    out = Path(a.workdir) / "out"
+    rows, p, phi = curve(out)
+    target = out / "post"
+    write_measures(rows, target / "measures.csv")
+    result, n = fit(p, phi, a.fit_p_max, a.fit_phi_max)
+    info = {"b": result.params["b"], "phi_p_max": result.params["phi_p_max"],
+            "stderr": result.stderr, "phi_range": result.phi_range, "n_points": n,
+            "rms_relative": result.rms_relative, "phi_p0": float(np.pi / 4),
+            "fit_p_max": a.fit_p_max if np.isfinite(a.fit_p_max) else None, "fit_phi_max": a.fit_phi_max}
+    (target / "fit.json").write_text(json.dumps(info, indent=2) + "\n")
+
+    from post.plots import new_figure, plot_single_particle, save_figure
+
+    curves = {label(out): (p, phi)}
+    for other in a.compare:
+        o = Path(other) / "out"
+        curves[label(o)] = curve(o)[1:]
+    fig, axes = new_figure(size=(5.5, 4.2))
+    ax = axes[0, 0]
+    plot_single_particle(ax, curves, result)
+    ax.set_xscale("log")
+    ax.set_title(f"single particle, Eq. 2 fitted on phi_p in [{result.phi_range[0]:.3f}, {result.phi_range[1]:.3f}]",
+                 fontsize=8)
+    save_figure(fig, target / "single_particle.png")
+    print(f"{target / 'measures.csv'}\nEq. 2: b = {info['b']:.4f} +- {result.stderr['b']:.1g}, phi_p,max = "
+          f"{info['phi_p_max']:.4f} +- {result.stderr['phi_p_max']:.1g} (fitted on {n} stages, phi_p in "
+          f"[{result.phi_range[0]:.4f}, {result.phi_range[1]:.4f}], rms {100 * result.rms_relative:.2g} %)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

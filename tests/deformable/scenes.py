@@ -1,0 +1,120 @@
+"""Scenes with deformable disks for the tests: written by pre.scene, run by compute's stepper."""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+E, NU, RHO = 1.0, 0.495, 1.0
+
+
+def study_module(name: str):
+    """studies/single_particle/<name>.py as a module (the scripts are not a package)."""
+    path = ROOT / "studies" / "single_particle" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"single_particle_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def disk(n: int = 92, element: str = "T6", centre=(0.0, 0.0), radius: float = 1.0, turn: float = 0.0):
+    """(points (m, 2), cells) of a gmsh disk mesh, a boundary segment centred on the +x axis
+    (then turned by ``turn`` radians), scaled and placed."""
+    from pre.mesh import reference_disk_mesh
+
+    mesh = reference_disk_mesh(n, element)
+    p = study_module("pre").face_on(mesh.points, mesh.boundary_nodes)
+    c, s = np.cos(turn), np.sin(turn)
+    p = p @ np.array([[c, -s], [s, c]]).T
+    return p * radius + np.asarray(centre, float), np.array(mesh.cells)
+
+
+def parameters(bounds, *, element: str = "T6", friction: float = 0.0, time_step: float = 1.0, theta: float = 1.0,
+               wall_mass: float = np.pi, control: str = "pressure", pressures=(1e-3,), gravity=(0.0, 0.0),
+               newton_tolerance: float = 1e-9, nlgs_tolerance: float = 1e-10, check_every: int = 2,
+               phi_tolerance: float = 1e-6, max_steps: int = 400, young: float = E, poisson: float = NU) -> dict:
+    law = {"law": "coulomb", "friction": friction} if friction > 0 else {"law": "frictionless"}
+    return {
+        "schema_version": 1,
+        "materials": {
+            "soft": {"kind": "neo_hookean", "density": RHO, "young": young, "poisson": poisson, "element": element,
+                     "volumetric": "mean_dilatation" if element == "T6" else "standard"},
+            "rigid": {"kind": "rigid", "density": RHO},
+        },
+        "interactions": [{"between": ["soft", "soft"], **law}, {"between": ["soft", "rigid"], **law},
+                         {"between": ["rigid", "rigid"], **law}],
+        "walls": {"xmin": bounds[0], "xmax": bounds[1], "ymin": bounds[2], "ymax": bounds[3], "mass": wall_mass,
+                  "control": control, "damping_inertial_number": 0.0},
+        "loading": {"pressures": list(pressures), "velocity": 0.0, "duration": 1.0, "phi_tolerance": phi_tolerance,
+                    "inertial_tolerance": 1e-4, "check_every": check_every, "max_steps_per_stage": max_steps,
+                    "gravity": list(gravity)},
+        "solver": {"time_step": time_step, "theta": theta, "nlgs_tolerance": nlgs_tolerance, "nlgs_max_sweeps": 50000,
+                   "relaxation": 1.0, "skin": 0.05, "newton_tolerance": newton_tolerance,
+                   "newton_max_iterations": 40},
+        "output": {"frames": "stages", "every_steps": 0, "checkpoint_every_steps": 100000},
+    }
+
+
+def write(folder, params: dict, soft=(), rigid=()) -> Path:
+    """Scene with deformable disks ``soft`` = [(points, cells)] and rigid disks ``rigid`` =
+    [(centre, radius)]; bodies numbered soft first."""
+    from pre.scene import write_scene
+
+    params = copy.deepcopy(params)
+    element = params["materials"]["soft"]["element"]
+    n = len(soft) + len(rigid)
+    centres, radii, mats, meshes = np.zeros((n, 2)), np.zeros(n), [], {}
+    for k, (p, cells) in enumerate(soft):
+        centres[k] = 0.5 * (p.min(axis=0) + p.max(axis=0))
+        radii[k] = 0.5 * (p.max(axis=0) - p.min(axis=0)).max()
+        mats.append("soft")
+        meshes[k] = (p, cells, element)
+    for j, (c, r) in enumerate(rigid, start=len(soft)):
+        centres[j], radii[j] = c, r
+        mats.append("rigid")
+    return write_scene(folder, params, centres, radii, mats, meshes=meshes)
+
+
+def load(folder):
+    """(model, stepper, state) of a scene folder."""
+    from compute.run import build_model
+    from compute.scene import read_scene
+
+    model = build_model(read_scene(folder))
+    return model, model.make_stepper(), model.initial_state()
+
+
+def pin_walls(stepper, walls=(0, 1)) -> None:
+    """Hold the given walls still (zero velocity, zero compliance) whatever the wall control."""
+    original = stepper.free_velocity
+
+    def free_velocity(state, pressure, wall_speed):
+        v, dofs, diag = original(state, pressure, wall_speed)
+        for w in walls:
+            d = stepper.wall_dofs[w]
+            v[d] = 0.0
+            diag[np.flatnonzero(dofs == d)] = 0.0
+        return v, dofs, diag
+
+    stepper.free_velocity = free_velocity
+
+
+def wall_forces(model, state, h: float) -> np.ndarray:
+    """Normal force (4,) of the particles on each wall, from the contact memory."""
+    from compute.frames import wall_forces as wf
+
+    return wf(model.frame_contacts(state), h)
+
+
+def settle(stepper, state, pressure: float, steps: int, tol: float = 0.0, wall_speed: float = 0.0):
+    """Step until the positions change by less than tol (relative to 1) over a step, or ``steps``."""
+    for _ in range(steps):
+        q0 = state.q.copy()
+        stepper.step(state, pressure, wall_speed)
+        if tol and np.abs(state.q - q0).max() < tol:
+            break
+    return state
