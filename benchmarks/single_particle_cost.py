@@ -1,0 +1,185 @@
+"""Single-particle study: run time against error, for meshes of about 30, 92, 300, 1000 elements,
+T3 and T6, and several time steps, all in one process, one after the other.
+
+Each case is the single-particle study itself (studies/single_particle: pre.write, compute.main,
+post.curve, imported, not copied) with its defaults except the element type, the element count
+and the time step h; it runs in a temporary folder. The run time is the wall time of the study's
+compute stage (scene reading, model building and all the stages; not the gmsh meshing nor post),
+after an untimed warm-up run per element type.
+
+Errors against the converged refinement reference (studies/single_particle/data/
+reference_T6_3000.csv, 3000 T6 elements), over the reference stages with phi_p <= 0.95 (P/E <= 0.16):
+
+- err_phi: max |phi_run(P_ref) / phi_ref - 1| at the reference's pressure stages, phi_run
+  interpolated linearly in ln P between the run's equilibrated stages (P = P_walls / E);
+- err_P: max |P_run / P_ref(phi_run) - 1| over the run's equilibrated stages with phi_p <= 0.95
+  inside the reference's phi range, P_ref(phi) interpolated linearly in ln P (P_p/E at equal phi_p).
+
+Writes benchmarks/results/single_particle_cost.{md,csv,png}.
+
+    python benchmarks/single_particle_cost.py [--time-steps 10 5] [--elements 30 92 300 1000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import importlib.util
+import io
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+STUDY = ROOT / "studies" / "single_particle"
+REFERENCE = STUDY / "data" / "reference_T6_3000.csv"
+RESULTS = Path(__file__).resolve().parent / "results"
+PHI_COMPARE = 0.95
+
+
+def study_module(name: str):
+    """studies/single_particle/<name>.py as module sp_<name> (its file name shadows a package)."""
+    spec = importlib.util.spec_from_file_location(f"sp_{name}", STUDY / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+sp_pre, sp_compute, sp_post = study_module("pre"), study_module("compute"), study_module("post")
+
+
+def reference() -> tuple[np.ndarray, np.ndarray]:
+    data = np.loadtxt(REFERENCE, delimiter=",", comments="#", skiprows=2)
+    return data[:, 0], data[:, 1]
+
+
+def errors(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.ndarray) -> tuple[float, float]:
+    """(err_phi, err_P) of a run's equilibrated curve against the reference (module docstring)."""
+    o = np.argsort(p)
+    sel = (phi_ref <= PHI_COMPARE) & (p_ref >= p.min()) & (p_ref <= p.max())
+    phi_at = np.interp(np.log(p_ref[sel]), np.log(p[o]), phi[o])
+    e_phi = float(np.max(np.abs(phi_at / phi_ref[sel] - 1))) if sel.any() else np.nan
+    o = np.argsort(phi_ref)
+    ok = (phi <= PHI_COMPARE) & (phi >= phi_ref.min()) & (phi <= phi_ref.max())
+    p_at = np.exp(np.interp(phi[ok], phi_ref[o], np.log(p_ref[o])))
+    e_p = float(np.max(np.abs(p[ok] / p_at - 1))) if ok.any() else np.nan
+    return e_phi, e_p
+
+
+def run_case(work: Path, element: str, n: int, h: float, ref) -> dict:
+    d = work / f"{element}_{n}_h{h:g}"
+    sp_pre.write(d / "scene", element=element, elements=n, time_step=h)
+    buf = io.StringIO()
+    t0 = time.perf_counter()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(io.StringIO()):
+        status = sp_compute.main(["--workdir", str(d)])
+    seconds = time.perf_counter() - t0
+    line = buf.getvalue().strip().splitlines()[-1] if buf.getvalue().strip() else ""
+    steps = int(line.split()[0]) if line.split()[1:2] == ["steps"] else -1
+    row = dict(element=element, elements=n, h=h, status="ok" if status == 0 else f"failed ({status})",
+               seconds=seconds, steps=steps, err_phi=np.nan, err_P=np.nan, stages=0)
+    try:
+        _, p, phi = sp_post.curve(d / "out")
+        row["stages"] = len(p)
+        row["err_phi"], row["err_P"] = errors(p, phi, *ref)
+    except Exception as exc:  # noqa: BLE001 - a failed case is reported, not fatal
+        row["status"] += f"; post: {exc}"
+    return row
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    from post.plots import new_figure, save_figure
+
+    fig, axes = new_figure(1, 2, size=(5.0, 4.0))
+    markers = {"T3": "s", "T6": "o"}
+    hs = sorted({r["h"] for r in rows}, reverse=True)
+    colors = dict(zip(hs, ["C0", "C1", "C2", "C3"]))
+    for ax, key, title in zip(axes[0], ("err_phi", "err_P"),
+                              (r"max rel. error of $\phi_p$ at equal $P$", r"max rel. error of $P_p/E$ at equal $\phi_p$")):
+        for e in ("T3", "T6"):
+            for h in hs:
+                sub = sorted((r for r in rows if r["element"] == e and r["h"] == h and np.isfinite(r[key])),
+                             key=lambda r: r["elements"])
+                if not sub:
+                    continue
+                x, y = [r["seconds"] for r in sub], [r[key] for r in sub]
+                ax.plot(x, y, marker=markers[e], color=colors[h], ls="-" if e == "T6" else "--",
+                        label=f"{e}, h = {h:g}")
+                for r in sub:
+                    ax.annotate(str(r["elements"]), (r["seconds"], r[key]), fontsize=6,
+                                textcoords="offset points", xytext=(3, 3))
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.set_xlabel("run time (s)")
+        ax.set_title(title + r", $\phi_p \leq 0.95$", fontsize=8)
+        ax.legend(fontsize=7)
+    save_figure(fig, path)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--elements", type=int, nargs="+", default=[30, 92, 300, 1000])
+    ap.add_argument("--types", nargs="+", default=["T3", "T6"], choices=["T3", "T6"])
+    ap.add_argument("--time-steps", type=float, nargs="+", default=[10.0, 5.0],
+                    help="h in R sqrt(rho/E) (default: the study's 10 and 10/2; 20 stops at P/E = 0.63)")
+    ap.add_argument("--skip", nargs="*", default=[], metavar="T6:1000:5",
+                    help="element:elements:h combinations left out")
+    ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV of the last run")
+    a = ap.parse_args()
+    if a.plot_only:
+        rows = [dict(r, elements=int(r["elements"]), h=float(r["h"]), seconds=float(r["seconds"]),
+                     err_phi=float(r["err_phi"]), err_P=float(r["err_P"]))
+                for r in csv.DictReader(open(RESULTS / "single_particle_cost.csv"))]
+        plot(rows, RESULTS / "single_particle_cost.png")
+        return
+    ref = reference()
+    skip = {tuple(s.split(":")) for s in a.skip}
+    rows = []
+    RESULTS.mkdir(exist_ok=True)
+    cols = ["element", "elements", "h", "status", "steps", "stages", "seconds", "err_phi", "err_P"]
+    t_all = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="sp_cost_") as tmp:
+        for e in a.types:  # untimed warm-up: numba cache loading and imports, paid by the first run only
+            run_case(Path(tmp) / "warmup", e, min(a.elements), a.time_steps[0], ref)
+        for n in a.elements:
+            for e in a.types:
+                for h in a.time_steps:
+                    if (e, str(n), f"{h:g}") in skip:
+                        continue
+                    rows.append(run_case(Path(tmp), e, n, h, ref))
+                    r = rows[-1]
+                    print(f"{e} {n:5d} h={h:g}: {r['status']}, {r['steps']} steps, {r['seconds']:.1f} s, "
+                          f"err_phi {r['err_phi']:.3g}, err_P {r['err_P']:.3g}", flush=True)
+                    with open(RESULTS / "single_particle_cost.csv", "w", newline="") as fh:
+                        w = csv.DictWriter(fh, cols, extrasaction="ignore")
+                        w.writeheader()
+                        w.writerows(rows)
+    total = time.perf_counter() - t_all
+    plot(rows, RESULTS / "single_particle_cost.png")
+    lines = ["# Single particle: run time against error (reference: 3000 T6 elements)", "",
+             "Errors over the reference stages with φ_p ≤ 0.95 (P/E ≤ 0.16): err φ = max relative error of "
+             "φ_p at the reference's pressures; err P = max relative error of P_p/E at equal φ_p "
+             "(interpolation in ln P). Run time = the study's compute stage (16 stages, P/E = 1e-3 … 1).", "",
+             "| element | elements | h | steps | run time (s) | err φ_p | err P_p/E | status |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in sorted(rows, key=lambda r: (r["element"], r["elements"], -r["h"])):
+        lines.append(f"| {r['element']} | {r['elements']} | {r['h']:g} | {r['steps']} | {r['seconds']:.1f} | "
+                     f"{100 * r['err_phi']:.2f} % | {100 * r['err_P']:.1f} % | {r['status']} |")
+    lines += ["", f"Whole benchmark: {total:.0f} s (`python benchmarks/single_particle_cost.py "
+              f"--elements {' '.join(map(str, a.elements))} --types {' '.join(a.types)} --time-steps "
+              f"{' '.join(f'{h:g}' for h in a.time_steps)}"
+              + (f" --skip {' '.join(a.skip)}" if a.skip else "") + "`)."]
+    (RESULTS / "single_particle_cost.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
