@@ -29,7 +29,7 @@ def _run(tmp_path, mu, alpha):
     return v, rep
 
 
-@pytest.mark.parametrize("mu, tan_alpha", [(0.3, 0.5), (0.5, 1.0)])
+@pytest.mark.parametrize("mu, tan_alpha", [(0.5, 0.3), (0.3, 0.5), (0.5, 1.0)])
 def test_rolls_without_slipping_below_three_mu(tmp_path, mu, tan_alpha):
     alpha = np.arctan(tan_alpha)
     v, rep = _run(tmp_path, mu, alpha)
