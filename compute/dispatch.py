@@ -1,0 +1,290 @@
+"""Dispatching independent runs (scene folder -> output folder) with Dask distributed.
+
+A study is many independent runs (κ × μ × seeds × ...). :func:`dispatch` sends them to a Dask
+cluster: a ``LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None)`` on this
+machine by default, or the scheduler at a given address (workers there need this toolkit
+installed and the run folders on a shared file system).
+
+How one run is executed (:func:`execute_run`, a Dask task)
+----------------------------------------------------------
+The task starts a child process ``python -m compute.dispatch SCENE OUT`` and waits for it:
+
+- the child holds an exclusive ``fcntl.flock`` on ``OUT/.lock`` while it computes, so that two
+  runs never write the same folder (e.g. an orphan of a killed study and its restart: the second
+  waits for the first, then finds COMPLETE and skips);
+- the child asks the kernel to kill it when its parent (the worker) dies (Linux
+  ``PR_SET_PDEATHSIG``): killing the study kills its runs, they resume from their checkpoints;
+- the child always runs with ``resume=True`` (compute.run: from ``OUT/checkpoint`` when there is
+  one, else from the scene);
+- numba, OpenMP and BLAS threads are capped to ``threads`` per run (default 1: the runs, not the
+  threads, fill the cores; ENVIRONMENT.md);
+- its stdout and stderr are appended to ``OUT/compute.log``.
+
+Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE), ``skipped``
+(OUT/COMPLETE was already there), ``failed`` (OUT/FAILED holds the diagnosis: a numerical failure
+written by compute, or a scene error / exception written here with the log's tail), ``killed``
+(the child died by a signal: nothing is marked, the next dispatch resumes it), ``lost`` (the
+Dask task itself failed, e.g. its worker died repeatedly). A run that fails never stops the
+others. Runs with OUT/FAILED are skipped by later dispatches unless ``retry_failed``.
+
+Every outcome is appended, as one JSON object per line, to ``log_file`` when given (the study's
+record of what ran when).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+__all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "run_status"]
+
+LOCK = ".lock"
+LOG = "compute.log"
+CHILD_ALREADY_COMPLETE = 10  # child exit code: another process completed the run meanwhile
+_CHILD_CODES = {0: "complete", CHILD_ALREADY_COMPLETE: "skipped", 2: "failed", 3: "failed", 1: "failed"}
+_THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run: a ``name`` (unique in a dispatch), its scene folder and its output folder."""
+
+    name: str
+    scene: Path
+    out: Path
+
+
+@dataclass
+class RunResult:
+    """Outcome of one run (see the module docstring for ``status``); ``wall_time`` in seconds of
+    this dispatch (0 when skipped); ``resumed`` the child started from a checkpoint."""
+
+    name: str
+    status: str
+    wall_time: float = 0.0
+    resumed: bool = False
+    message: str = ""
+
+
+def run_status(out: str | Path) -> str:
+    """``complete``, ``failed``, ``partial`` (a checkpoint, no marker) or ``new``, from the files."""
+    out = Path(out)
+    if (out / "COMPLETE").is_file():
+        return "complete"
+    if (out / "FAILED").is_file():
+        return "failed"
+    if (out / "checkpoint" / "state.npz").is_file():
+        return "partial"
+    return "new"
+
+
+def _tail(path: Path, lines: int = 15) -> str:
+    try:
+        return "".join(path.read_text(errors="replace").splitlines(keepends=True)[-lines:])
+    except OSError:
+        return ""
+
+
+def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_failed: bool = False) -> dict:
+    """Run one scene in a child process (module docstring); never raises for a failed run.
+
+    Returns the fields of :class:`RunResult` but ``name`` as a dict (plain data for Dask)."""
+    scene, out = Path(scene).resolve(), Path(out).resolve()
+    status = run_status(out)
+    if status == "complete":
+        return {"status": "skipped", "message": "COMPLETE exists"}
+    if status == "failed" and not retry_failed:
+        return {"status": "failed", "message": "not retried (FAILED exists): " + _tail(out / "FAILED", 3).strip()}
+    out.mkdir(parents=True, exist_ok=True)
+    resumed = status == "partial"
+    env = dict(os.environ)
+    env.update({k: str(int(threads)) for k in _THREAD_VARIABLES})
+    env["SOFTRIGID_PARENT_PID"] = str(os.getpid())
+    cmd = [sys.executable, "-m", "compute.dispatch", str(scene), str(out)]
+    if retry_failed:
+        cmd.append("--retry-failed")
+    t0 = time.perf_counter()
+    with (out / LOG).open("a") as log:
+        log.write(f"=== {time.strftime('%Y-%m-%d %H:%M:%S')} pid {os.getpid()} on {os.uname().nodename}: "
+                  f"{'resume' if resumed else 'start'} {scene} -> {out}\n")
+        log.flush()
+        code = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL).returncode
+    wall = time.perf_counter() - t0
+    if code < 0:
+        name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
+        return {"status": "killed", "wall_time": wall, "resumed": resumed,
+                "message": f"run process killed by {name}; the next dispatch resumes it"}
+    status = _CHILD_CODES.get(code, "failed")
+    message = ""
+    if status == "failed":
+        if not (out / "FAILED").is_file():  # compute writes FAILED on numerical failures only
+            (out / "FAILED").write_text(f"run process exited with code {code}; end of {LOG}:\n{_tail(out / LOG)}")
+        message = _tail(out / "FAILED", 5).strip()
+    elif status == "complete" and not (out / "COMPLETE").is_file():
+        status, message = "failed", "run process exited normally without writing COMPLETE"
+        (out / "FAILED").write_text(message + "\n")
+    return {"status": status, "wall_time": wall, "resumed": resumed, "message": message}
+
+
+def local_cluster(n_workers: int = 2, threads_per_worker: int = 1):
+    """The default cluster: worker processes with one thread each, no dashboard.
+
+    (The scheduler's small HTTP server still binds a port: 8787, or any free one when 8787 is taken
+    by another cluster, which distributed warns about; that warning is silenced here.)"""
+    import warnings
+
+    from dask.distributed import LocalCluster
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
+        return LocalCluster(n_workers=n_workers, threads_per_worker=threads_per_worker, processes=True,
+                            dashboard_address=None)
+
+
+def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: int = 2, threads: int = 1,
+             retry_failed: bool = False, log: Callable[[str], None] | None = print,
+             log_file: str | Path | None = None) -> list[RunResult]:
+    """Run every run of ``runs`` not yet complete, at most one per worker thread at a time,
+    started in the order of ``runs`` (put the longest first).
+
+    scheduler: a Dask scheduler address (``tcp://host:8786``); None starts
+    :func:`local_cluster` (``n_workers`` workers, one thread each) for the duration of the call.
+    threads: numba/BLAS threads per run. Returns one :class:`RunResult` per run, in the order
+    of ``runs``; also appended to ``log_file`` (JSON lines) when given.
+    """
+    runs = list(runs)
+    names = [r.name for r in runs]
+    if len(set(names)) != len(names):
+        raise ValueError(f"runs: names must be unique, got {names}")
+    say = log or (lambda msg: None)
+    results: dict[str, RunResult] = {}
+
+    def record(result: RunResult) -> None:
+        results[result.name] = result
+        extra = f" ({result.wall_time:.1f} s{', resumed' if result.resumed else ''})" if result.wall_time else ""
+        say(f"[{result.status}] {result.name}{extra}" + (f": {result.message}" if result.message and
+                                                          result.status != "skipped" else ""))
+        if log_file is not None:
+            with Path(log_file).open("a") as stream:
+                stream.write(json.dumps({"time": time.strftime("%Y-%m-%dT%H:%M:%S"), **asdict(result)}) + "\n")
+
+    todo = []
+    for r in runs:
+        status = run_status(r.out)
+        if status == "complete":
+            record(RunResult(r.name, "skipped", message="COMPLETE exists"))
+        elif status == "failed" and not retry_failed:
+            record(RunResult(r.name, "failed", message="not retried (FAILED exists; use retry_failed)"))
+        else:
+            todo.append(r)
+    if todo:
+        from dask.distributed import Client, as_completed
+
+        cluster = None if scheduler else local_cluster(n_workers)
+        try:
+            with Client(scheduler or cluster) as client:
+                say(f"dispatching {len(todo)} run(s) to {scheduler or 'a local cluster'} "
+                    f"({len(client.scheduler_info().get('workers', {}))} workers)")
+                # the client hands out one run per worker thread and the next one when a run ends:
+                # runs start in the order given, and none waits behind a long run on a busy worker
+                # while another worker is idle (Dask may otherwise place tasks that way)
+                queue, running, done = list(todo), {}, as_completed()
+
+                def fill() -> None:
+                    slots = max(1, sum(client.nthreads().values()))
+                    while queue and len(running) < slots:
+                        spec = queue.pop(0)
+                        future = client.submit(execute_run, str(spec.scene), str(spec.out), threads, retry_failed,
+                                               key=f"run-{spec.name}-{time.time_ns()}", pure=False)
+                        running[future] = spec
+                        done.add(future)
+
+                fill()
+                for future in done:
+                    spec = running.pop(future)
+                    try:
+                        record(RunResult(spec.name, **future.result()))
+                    except Exception as exc:  # the task itself died (worker lost, ...)
+                        record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
+                    fill()
+        finally:
+            if cluster is not None:
+                cluster.close()
+    return [results[n] for n in names]
+
+
+# --------------------------------------------------------------------------- the child process
+
+
+def _die_with_parent() -> None:
+    """Linux: SIGKILL this process when its parent dies; exit now if it is already gone."""
+    parent = int(os.environ.get("SOFTRIGID_PARENT_PID", "0"))
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except OSError:
+            pass
+    if parent and os.getppid() != parent:
+        sys.exit(f"parent {parent} is gone: not starting")
+
+
+def _child(argv: list[str] | None = None) -> int:
+    """``python -m compute.dispatch SCENE OUT [--retry-failed]``: one run, under OUT/.lock."""
+    import argparse
+    import fcntl
+    import traceback
+
+    p = argparse.ArgumentParser(prog="python -m compute.dispatch",
+                                description="Run one scene under its output folder's lock (used by dispatch).")
+    p.add_argument("scene")
+    p.add_argument("out")
+    p.add_argument("--retry-failed", action="store_true")
+    a = p.parse_args(argv)
+    _die_with_parent()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with (out / LOCK).open("a") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            print(f"{out} is locked by another process: waiting for it", flush=True)
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        status = run_status(out)
+        if status == "complete":
+            print("COMPLETE exists: nothing to do", flush=True)
+            return CHILD_ALREADY_COMPLETE
+        if status == "failed":
+            if not a.retry_failed:
+                print("FAILED exists: not retried", flush=True)
+                return 3
+            (out / "FAILED").unlink()
+        from compute.errors import SceneError, SimulationError
+        from compute.run import run
+
+        try:
+            run(a.scene, out, resume=True, log=lambda msg: print(msg, flush=True))
+        except SceneError as exc:
+            (out / "FAILED").write_text(f"scene error: {exc}\n")
+            print(f"error: {exc}", flush=True)
+            return 2
+        except SimulationError as exc:  # compute.run wrote FAILED
+            print(f"simulation failed: {exc}", flush=True)
+            return 3
+        except Exception:
+            (out / "FAILED").write_text("exception in the run:\n" + traceback.format_exc())
+            traceback.print_exc()
+            return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_child())

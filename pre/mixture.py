@@ -1,0 +1,156 @@
+"""Rigid/soft mixtures: a fraction κ of the particle volume of a jammed rigid packing replaced by
+deformable (neo-Hookean, finite-element) disks at the same positions and with the same sizes.
+
+The paper (Cárdenas-Barrantes et al. 2021, Sec. 2): "a volume κ V_p is homogeneously replaced by
+deformable disks meshed with 92 triangular similar-size elements". Here "homogeneously" means a
+random choice that is spatially uniform: the disks are taken in the order of a random permutation
+(independent of position, so every region of the box is equally likely to receive soft disks), and
+the chosen set is the prefix of that order whose area is closest to κ V_p, refined by one swap
+(the last chosen disk against an unchosen one) when that brings the area closer. The area error
+is then at most half the area difference between two disks, well below one disk's area.
+
+Public API
+----------
+- :func:`choose_deformable`: the mask (n,) of disks to make deformable, for radii (n,) and κ.
+- :func:`soft_material`: the neo-Hookean material table (FORMATS.md) of the soft disks.
+- :func:`mixture_scene`: read a rigid scene folder, write the mixture scene folder.
+- :func:`compaction_parameters`: the scene tables of a quasi-static isotropic compaction in
+  P/E stages (reduced units ⟨d⟩ = ρ = E = 1), :data:`QUASI_STATIC` its numerical settings.
+
+pre reads the rigid scene from its files (compute.scene.read_scene validates it), never from
+another stage's memory.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["choose_deformable", "soft_material", "mixture_scene", "compaction_parameters", "QUASI_STATIC",
+           "RIGID", "SOFT"]
+
+RIGID, SOFT = "rigid", "soft"
+
+# Numerical settings of the quasi-static compaction, "table.key" -> value, in reduced units
+# (<d> = 1, rho = 1, E = 1; time unit <d> sqrt(rho/E)). Measured on 40-disk mixtures (see
+# studies/mixture_compaction/README.md): theta = 1 with h = 1 makes a step nearly an implicit
+# static step; wall damping with terminal inertial number 1e-2 moves the walls 10x faster than
+# 1e-3 toward the next equilibrium (the stage still ends only when I < 1e-4); the wall force must
+# balance P L within 1 % (1e-3 tripled the steps per stage: a slow creep of the box shape).
+QUASI_STATIC = {
+    "solver.time_step": 0.5, "solver.theta": 1.0, "solver.nlgs_tolerance": 1e-4, "solver.nlgs_max_sweeps": 2000,
+    "solver.newton_tolerance": 1e-5, "solver.newton_max_iterations": 25,
+    "walls.damping_inertial_number": 1e-2,
+    "loading.phi_tolerance": 1e-4, "loading.inertial_tolerance": 1e-4, "loading.force_tolerance": 1e-2,
+    "loading.check_every": 20, "loading.max_steps_per_stage": 5000,
+    "output.checkpoint_every_steps": 200,
+}
+
+
+def compaction_parameters(bounds: tuple[float, float, float, float], friction: float, pressures,
+                          overrides: dict | None = None) -> dict:
+    """Walls, loading, solver and output tables (pre.scene.default_parameters layout) of an
+    isotropic compaction by frictionless pressure-driven walls, no gravity, through the stages
+    ``pressures`` (P/E, E = 1), each run to equilibrium (phi variation < 1e-4 over check_every
+    steps, inertial number < 1e-4, wall force = P L within 1 %). :data:`QUASI_STATIC` then
+    ``overrides`` ("table.key" -> value) set the numerical settings."""
+    from pre.scene import default_parameters
+
+    params = default_parameters(bounds, friction, 1.0, [float(p) for p in pressures])
+    for key, value in {**QUASI_STATIC, **(overrides or {})}.items():
+        table, field = key.split(".")
+        if table not in params:
+            raise ValueError(f"overrides: unknown table {table!r} in {key!r}")
+        params[table][field] = value
+    return params
+
+
+def choose_deformable(radii: np.ndarray, kappa: float, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Boolean mask (n,) of the disks of ``radii`` (n,) that become deformable.
+
+    A random, position-independent choice whose total area Σ π r² is the closest reachable by a
+    prefix of a random permutation (plus one swap) to κ V_p, V_p = Σ π r² over all disks.
+    κ = 0 gives no soft disk, κ = 1 all of them.
+    """
+    radii = np.asarray(radii, dtype=float)
+    if radii.ndim != 1 or len(radii) == 0 or np.any(radii <= 0) or not np.all(np.isfinite(radii)):
+        raise ValueError(f"radii: expected a non-empty 1D array of positive radii, got shape {radii.shape}")
+    if not 0.0 <= kappa <= 1.0:
+        raise ValueError(f"kappa: expected 0 <= kappa <= 1, got {kappa}")
+    rng = rng or np.random.default_rng()
+    n = len(radii)
+    area = np.pi * radii**2
+    target = kappa * area.sum()
+    order = rng.permutation(n)
+    cumulative = np.concatenate([[0.0], np.cumsum(area[order])])
+    k = int(np.argmin(np.abs(cumulative - target)))      # first k disks of the permutation
+    chosen = np.zeros(n, dtype=bool)
+    chosen[order[:k]] = True
+    if 0 < k < n:  # one swap: the last chosen disk against the unchosen disk that fits best
+        last, rest = order[k - 1], order[k:]
+        error = cumulative[k] - target
+        swapped = error - area[last] + area[rest]
+        best = int(np.argmin(np.abs(swapped)))
+        if abs(swapped[best]) < abs(error):
+            chosen[last], chosen[rest[best]] = False, True
+    return chosen
+
+
+def soft_material(element: str = "T3", volumetric: str | None = None, young: float = 1.0,
+                  poisson: float = 0.495, density: float = 1.0) -> dict:
+    """The ``[materials.soft]`` table: neo-Hookean, E = 1, ν = 0.495 by default (the paper's).
+
+    ``volumetric`` defaults to "mean_dilatation" for T6 and "standard" for T3 (the only one
+    compute accepts for one-point T3 elements)."""
+    if element not in ("T3", "T6"):
+        raise ValueError(f"element: expected 'T3' or 'T6', got {element!r}")
+    volumetric = volumetric or ("mean_dilatation" if element == "T6" else "standard")
+    return {"kind": "neo_hookean", "density": float(density), "young": float(young),
+            "poisson": float(poisson), "element": element, "volumetric": volumetric}
+
+
+def mixture_scene(rigid_scene: str | Path, folder: str | Path, kappa: float, friction: float,
+                  rng: np.random.Generator | None = None, *, element: str = "T3", n_elements: int = 92,
+                  volumetric: str | None = None, young: float = 1.0, poisson: float = 0.495,
+                  parameters: dict | None = None) -> tuple[Path, np.ndarray]:
+    """Write ``folder`` (scene.toml + bodies.vtu): the rigid scene ``rigid_scene`` (a jammed
+    packing of rigid disks, read from its files) with a fraction ``kappa`` of its particle
+    volume replaced by neo-Hookean disks (:func:`choose_deformable`), each meshed with about
+    ``n_elements`` triangles of type ``element`` (one reference mesh, scaled and translated).
+
+    Every pair of materials present interacts with a Coulomb law of coefficient ``friction``
+    (walls are frictionless). ``parameters``: the walls/loading/solver/output tables of the new
+    scene (as in pre.scene.default_parameters); by default those of the rigid scene. The box is
+    always the rigid scene's. Returns the folder and the mask (n,) of the deformable bodies.
+    """
+    from compute.scene import read_scene
+    from pre.mesh import reference_disk_mesh
+    from pre.scene import write_scene
+
+    rigid = read_scene(rigid_scene)
+    if rigid.deformable or any(m.kind != "rigid" for m in rigid.materials.values()):
+        raise ValueError(f"{rigid.path}: expected a scene of rigid disks only")
+    n = rigid.n_bodies
+    centres = np.zeros((n, 2))
+    centres[rigid.rigid_ids] = rigid.rigid_centres
+    radii = np.asarray(rigid.radius, dtype=float)
+    soft = choose_deformable(radii, kappa, rng)
+
+    params = copy.deepcopy(parameters) if parameters is not None else copy.deepcopy(rigid.raw)
+    params.pop("bodies", None)
+    params["walls"] = {**params["walls"], **dict(zip(("xmin", "xmax", "ymin", "ymax"), rigid.walls.bounds))}
+    params["materials"] = {RIGID: {"kind": "rigid", "density": float(rigid.materials[rigid.material_names[0]].density)},
+                           SOFT: soft_material(element, volumetric, young, poisson)}
+    law = {"law": "coulomb", "friction": float(friction)}
+    params["interactions"] = [{"between": list(pair), **law}
+                              for pair in ((RIGID, RIGID), (RIGID, SOFT), (SOFT, SOFT))]
+    meshes = {}
+    if soft.any():
+        reference = reference_disk_mesh(n_elements, element)
+        for b in np.flatnonzero(soft):
+            m = reference.placed(centres[b], radii[b])
+            meshes[int(b)] = (np.array(m.points), np.array(m.cells), element)
+    materials = [SOFT if s else RIGID for s in soft]
+    return write_scene(folder, params, centres, radii, materials, meshes=meshes), soft

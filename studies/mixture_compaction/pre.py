@@ -1,0 +1,129 @@
+"""Stage 1 of the mixture compaction study (Cárdenas-Barrantes et al. 2021): for each friction μ
+and seed, N polydisperse rigid disks jammed once by the compute stage (pre.jamming); then, for each
+mixture ratio κ, a fraction κ of the particle volume replaced by neo-Hookean disks at the same
+positions and sizes (pre.mixture), written as DIR/runs/<name>/scene with the loading program:
+pressure stages P/E log-spaced from --p-min to --p-max, each equilibrated.
+
+Writes DIR/study.json (the runs and their parameters), DIR/rigid/mu<μ>_s<seed>/ (the jamming
+runs and the jammed rigid scenes) and DIR/runs/k<κ>_mu<μ>_s<seed>/scene. Reduced units: mean
+diameter 1, density 1, E = 1 (soft disks; rigid ones have E = infinity).
+"""
+
+import sys
+from pathlib import Path
+
+# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import shutil  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+# The small default: the whole study (4 kappa x 2 mu, one seed) in about 10 minutes on 2 cores
+# (measured: README.md).
+DEFAULTS = {"n": 30, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
+            "p_min": 1e-3, "p_max": 0.3, "stages": 6}
+
+
+def run_name(kappa: float, mu: float, seed: int) -> str:
+    """The folder name of a run under DIR/runs."""
+    return f"k{kappa:g}_mu{mu:g}_s{seed}"
+
+
+def parse_set(items: list[str]) -> dict:
+    """--set table.key=value items -> {"table.key": value} (value parsed as JSON, else a string)."""
+    out = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or key.count(".") != 1:
+            raise SystemExit(f"--set {item!r}: expected table.key=value, e.g. solver.time_step=0.5")
+        try:
+            out[key] = json.loads(text)
+        except json.JSONDecodeError:
+            out[key] = text
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--workdir", required=True, help="study folder (DIR)")
+    p.add_argument("--n", type=int, default=DEFAULTS["n"], help=f"number of disks (default {DEFAULTS['n']}; paper 1500)")
+    p.add_argument("--kappa", type=float, nargs="+", default=DEFAULTS["kappa"],
+                   help="mixture ratios: fraction of the particle volume made deformable (default 0.2 0.5 0.8 1)")
+    p.add_argument("--mu", type=float, nargs="+", default=DEFAULTS["mu"],
+                   help="inter-particle friction coefficients (default 0 0.2); walls are frictionless")
+    p.add_argument("--seeds", type=int, nargs="+", default=DEFAULTS["seeds"], help="random seeds (default 1)")
+    p.add_argument("--p-min", type=float, default=DEFAULTS["p_min"], help="first P/E (default 1e-3)")
+    p.add_argument("--p-max", type=float, default=DEFAULTS["p_max"], help=f"last P/E (default {DEFAULTS['p_max']})")
+    p.add_argument("--stages", type=int, default=DEFAULTS["stages"],
+                   help=f"number of log-spaced pressure stages (default {DEFAULTS['stages']})")
+    p.add_argument("--pressures", type=float, nargs="+", default=None, help="explicit P/E stages (overrides the above)")
+    p.add_argument("--element", choices=("T3", "T6"), default="T3", help="soft-disk elements (default T3, as the paper)")
+    p.add_argument("--elements", type=int, default=92, help="triangles per soft disk (default 92, as the paper)")
+    p.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                   help="override a scene parameter of the runs, e.g. --set solver.time_step=0.5 (repeatable)")
+    p.add_argument("--force", action="store_true",
+                   help="delete existing run outputs (DIR/runs/*/out) instead of refusing to overwrite them")
+    a = p.parse_args(argv)
+
+    from pre.jamming import jammed_rigid_scene
+    from pre.mixture import compaction_parameters, mixture_scene
+
+    w = Path(a.workdir)
+    if any(k < 0 or k > 1 for k in a.kappa) or any(m < 0 for m in a.mu) or a.n < 2:
+        p.error("expected 0 <= kappa <= 1, mu >= 0 and n >= 2")
+    pressures = a.pressures or list(np.geomspace(a.p_min, a.p_max, a.stages))
+    if any(x <= 0 for x in pressures) or any(np.diff(pressures) <= 0):
+        p.error(f"pressures: expected increasing positive P/E, got {pressures}")
+    overrides = parse_set(a.set)
+    existing = sorted((w / "runs").glob("*/out"))
+    if existing and not a.force:
+        p.error(f"{w / 'runs'} already holds run outputs ({existing[0]} ...): use --force to start the study again")
+    for out in existing:
+        shutil.rmtree(out)
+    (w / "post").exists() and a.force and shutil.rmtree(w / "post")
+
+    runs, jams = [], []
+    t_start = time.perf_counter()
+    for mu in a.mu:
+        for seed in a.seeds:
+            t0 = time.perf_counter()
+            rigid_dir = w / "rigid" / f"mu{mu:g}_s{seed}"
+            # jammed at P = 1 in units of rho <d>^2/t^2 (rigid disks: P only sets the time scale)
+            rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu, seed, [1.0], overrides={"solver.time_step": 0.1},
+                                             log=lambda msg: None)
+            frames = (rigid_dir / "jamming" / "out" / "frames.csv").read_text().splitlines()
+            equilibrated = frames[-1].split(",")[5] == "1"
+            jams.append({"mu": mu, "seed": seed, "scene": str(rigid_scene.relative_to(w)), "equilibrated": equilibrated,
+                         "seconds": round(time.perf_counter() - t0, 1)})
+            print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"
+                  f"{'' if equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
+            from compute.scene import read_scene
+
+            bounds = read_scene(rigid_scene).walls.bounds
+            params = compaction_parameters(bounds, mu, pressures, overrides)
+            for kappa in a.kappa:
+                name = run_name(kappa, mu, seed)
+                folder, soft = mixture_scene(rigid_scene, w / "runs" / name / "scene", kappa, mu,
+                                             np.random.default_rng(seed), element=a.element,
+                                             n_elements=a.elements, parameters=params)
+                radii = np.asarray(read_scene(folder).radius)
+                actual = float(np.sum(radii[soft] ** 2) / np.sum(radii**2))
+                runs.append({"name": name, "kappa": kappa, "mu": mu, "seed": seed, "n_soft": int(soft.sum()),
+                             "kappa_actual": round(actual, 6), "scene": str(folder.relative_to(w)),
+                             "out": str((w / "runs" / name / "out").relative_to(w))})
+                print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})", flush=True)
+    study = {"study": "mixture_compaction", "n": a.n, "element": a.element, "elements": a.elements,
+             "pressures_over_E": [float(x) for x in pressures], "young": 1.0, "poisson": 0.495,
+             "overrides": overrides, "jamming": jams, "runs": runs,
+             "pre_seconds": round(time.perf_counter() - t_start, 1)}
+    (w / "study.json").write_text(json.dumps(study, indent=1) + "\n")
+    print(f"{len(runs)} scenes written; study description {w / 'study.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,41 @@
+"""compute.dispatch: independent runs on a local Dask cluster; a failing run does not take the
+others down and records its diagnosis; complete runs are skipped when dispatching again."""
+
+import json
+
+import numpy as np
+import pytest
+
+from compute.dispatch import RunSpec, dispatch, run_status
+
+
+def lattice_scene(folder, pressures=(1.0,)):
+    """3 x 3 touching rigid disks in their box: equilibrated within a few checks."""
+    from pre.scene import default_parameters, write_scene
+
+    xy = np.stack(np.meshgrid(np.arange(3) + 0.5, np.arange(3) + 0.5), -1).reshape(-1, 2)
+    params = default_parameters((0.0, 3.0, 0.0, 3.0), 0.3, 1.0, list(pressures))
+    return write_scene(folder, params, xy, np.full(9, 0.5), ["rigid"] * 9)
+
+
+def test_failure_isolated_and_complete_runs_skipped(tmp_path):
+    good = lattice_scene(tmp_path / "good" / "scene")
+    bad = lattice_scene(tmp_path / "bad" / "scene")
+    (bad / "scene.toml").write_text((bad / "scene.toml").read_text().replace("time_step = ", "time_step = -"))
+    runs = [RunSpec("bad", bad, tmp_path / "bad" / "out"), RunSpec("good", good, tmp_path / "good" / "out")]
+    log = tmp_path / "dispatch.jsonl"
+    results = dispatch(runs, n_workers=2, log=None, log_file=log)
+    assert [(r.name, r.status) for r in results] == [("bad", "failed"), ("good", "complete")]
+    assert "solver.time_step" in (tmp_path / "bad" / "out" / "FAILED").read_text()
+    assert run_status(tmp_path / "good" / "out") == "complete"
+    assert "equilibrated" in (tmp_path / "good" / "out" / "compute.log").read_text()
+
+    again = dispatch(runs, log=None, log_file=log)  # no cluster needed: nothing to run
+    assert [(r.name, r.status) for r in again] == [("bad", "failed"), ("good", "skipped")]
+    entries = [json.loads(line) for line in log.read_text().splitlines()]
+    assert [(e["name"], e["status"]) for e in entries][-2:] == [("bad", "failed"), ("good", "skipped")]
+
+
+def test_names_must_be_unique(tmp_path):
+    with pytest.raises(ValueError, match="unique"):
+        dispatch([RunSpec("a", tmp_path, tmp_path / "1"), RunSpec("a", tmp_path, tmp_path / "2")], log=None)

@@ -1,0 +1,130 @@
+"""The mixture compaction study through its three scripts on a tiny sample (a few dozen disks, two
+pressure stages): the files, P from contacts against P from walls, Z against the contacts listed in
+the VTK frames (counted here independently), and a study killed midway finishing only what is
+missing when started again."""
+
+import csv
+import fcntl
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+STUDY = Path(__file__).resolve().parents[2] / "studies" / "mixture_compaction"
+TINY = ["--n", "16", "--mu", "0.2", "--seeds", "1", "--pressures", "0.001", "0.002"]
+
+
+def script(name, workdir, *extra, **kw):
+    return subprocess.run([sys.executable, str(STUDY / name), "--workdir", str(workdir), *extra],
+                          check=True, capture_output=True, text=True, **kw)
+
+
+def independent_Z(contacts_vtu: Path, n_particles: int, threshold: float = 1e-9) -> float:
+    """Z = (2 N_pp + N_pw) / N_p from the contact lines of a frame, one contact per pair of bodies
+    carrying fn > threshold x the mean positive fn."""
+    from meshio import vtu
+
+    mesh = vtu.read(contacts_vtu)
+    data = {k: np.concatenate([np.asarray(b).reshape(len(b), -1)[:, 0] for b in v]) for k, v in mesh.cell_data.items()
+            if k in ("body_i", "body_j", "fn")}
+    fn = data["fn"]
+    active = fn > threshold * fn[fn > 0].mean()
+    pairs = {tuple(sorted((int(i), int(j)))) for i, j in zip(data["body_i"][active], data["body_j"][active])}
+    n_pp = sum(1 for i, j in pairs if i >= 0 and j >= 0)
+    n_pw = sum(1 for i, j in pairs if i < 0 or j < 0)
+    return (2 * n_pp + n_pw) / n_particles
+
+
+def test_help():
+    for name in ("pre.py", "compute.py", "post.py"):
+        out = subprocess.run([sys.executable, str(STUDY / name), "--help"], check=True, capture_output=True, text=True)
+        assert "--workdir" in out.stdout
+    assert "--scheduler" in subprocess.run([sys.executable, str(STUDY / "compute.py"), "--help"],
+                                           capture_output=True, text=True).stdout
+
+
+def test_three_stages_end_to_end(tmp_path):
+    w = tmp_path / "study"
+    script("pre.py", w, *TINY, "--kappa", "0.5")
+    script("compute.py", w, "--workers", "1")
+    post = script("post.py", w)
+    assert "PAPER'S VALUE" in post.stdout  # no single-particle result in a fresh checkout: flagged
+    study = json.loads((w / "study.json").read_text())
+    (run,) = study["runs"]
+    assert run["name"] == "k0.5_mu0.2_s1" and abs(run["kappa_actual"] - 0.5) < 0.1
+    out = w / run["out"]
+    for name in ("COMPLETE", "bodies.pvd", "contacts.pvd", "walls.pvd", "history.csv", "post/measures.csv"):
+        assert (out / name).is_file(), name
+    for name in ("table1.csv", "fits.csv", "errors.csv", "curves.csv", "summary.md", "fig1_views.png",
+                 "fig2_compaction.png", "fig3_bulk_modulus.png", "fig4_coordination.png", "fig5_single_particle.png"):
+        assert (w / "post" / name).is_file(), name
+    rows = list(csv.DictReader(open(out / "post" / "measures.csv")))
+    assert [float(r["pressure_applied"]) for r in rows] == [0.001, 0.002]
+    assert all(r["equilibrated"] == "1" for r in rows)
+    for r in rows:
+        assert float(r["P"]) == pytest.approx(float(r["P_walls"]), rel=0.01)  # contacts against walls
+        assert float(r["P_walls"]) == pytest.approx(float(r["pressure_applied"]), rel=0.01)
+        Z = independent_Z(out / "frames" / f"contacts_{int(r['frame']):05d}.vtu", int(r["n_particles"]))
+        assert float(r["Z"]) == pytest.approx(Z, abs=1e-12)
+        assert 0.70 < float(r["phi"]) < 0.90
+    table1 = list(csv.DictReader(open(w / "post" / "table1.csv")))
+    assert float(table1[0]["phi0"]) == pytest.approx(float(rows[0]["phi"]))
+    assert float(table1[0]["Z0"]) == pytest.approx(float(rows[0]["Z"]))
+    fits = list(csv.DictReader(open(w / "post" / "fits.csv")))
+    assert {(f["law"], f["parameter"]) for f in fits} >= {("eq5", "phi_max"), ("single_particle (Eq. 2)", "b")}
+
+
+def _locked(path: Path) -> bool:
+    with path.open("a") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        fcntl.flock(f, fcntl.LOCK_UN)
+        return False
+
+
+def test_killed_study_finishes_only_the_missing_runs(tmp_path):
+    w = tmp_path / "study"
+    script("pre.py", w, *TINY, "--kappa", "0.5", "1")
+    first, second = w / "runs" / "k1_mu0.2_s1" / "out", w / "runs" / "k0.5_mu0.2_s1" / "out"  # heaviest first
+    proc = subprocess.Popen([sys.executable, str(STUDY / "compute.py"), "--workdir", str(w), "--workers", "1"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.time() + 240
+        # kill once the first run is complete and the second has checkpointed its first stage
+        while not ((first / "COMPLETE").is_file() and (second / "frames.csv").is_file()
+                   and len((second / "frames.csv").read_text().splitlines()) >= 2):
+            assert proc.poll() is None, "compute.py ended before it could be killed"
+            assert time.time() < deadline
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert not (second / "COMPLETE").is_file()
+    # the run processes die with the study: the second run's lock is released
+    deadline = time.time() + 30
+    while _locked(second / ".lock"):
+        assert time.time() < deadline, "a run process outlived the killed study"
+        time.sleep(0.2)
+    complete_mtime = os.stat(first / "COMPLETE").st_mtime_ns
+    frame0_mtime = os.stat(second / "frames" / "bodies_00000.vtu").st_mtime_ns
+    n_logged = len((w / "dispatch.jsonl").read_text().splitlines())
+
+    script("compute.py", w, "--workers", "1")
+    assert (second / "COMPLETE").is_file()
+    assert os.stat(first / "COMPLETE").st_mtime_ns == complete_mtime  # not run again
+    assert os.stat(second / "frames" / "bodies_00000.vtu").st_mtime_ns == frame0_mtime  # resumed, not restarted
+    log = [json.loads(line) for line in (w / "dispatch.jsonl").read_text().splitlines()[n_logged:]]
+    assert {e["name"]: e["status"] for e in log} == {"k1_mu0.2_s1": "skipped", "k0.5_mu0.2_s1": "complete"}
+    assert next(e for e in log if e["name"] == "k0.5_mu0.2_s1")["resumed"]
+    rows = list(csv.DictReader(open(second / "frames.csv")))
+    assert [r["stage"] for r in rows] == ["0", "1"] and all(r["equilibrated"] == "1" for r in rows)
