@@ -14,12 +14,14 @@ Study level, in DIR/post/ (equilibrated frames only; seeds of one (κ, μ) poole
 - fig1_views.png … fig5_single_particle.png, phi_max_vs_kappa.png (like the paper's Figs. 1–5);
 - summary.md: the toolkit's numbers beside the paper's, run times, and where b came from.
 
-b and φ_p,max (Eq. 2, single particle): --b / --phi-p-max; else --single-particle PATH (a JSON
-file with "b" and "phi_p_max", a single-particle measures.csv, or a single-particle study folder
-whose out/post/measures.csv is fitted with Eq. 2); else the first of
-studies/single_particle/results/eq2_fit.json and studies/single_particle/results/measures.csv
-that exists; else b = 0.14, THE PAPER'S VALUE, and φ_p,max = 1 (an assumption: an incompressible
-disk fills its square box), flagged as such in every output.
+b and φ_p,max (Eq. 2, single particle): --b / --phi-p-max; else --single-particle PATH (a
+single-particle study folder, whose out/post/fit.json or out/post/measures.csv is used; a JSON
+file with "b" and "phi_p_max"; a CSV table of fits per mesh with columns element, elements, b,
+phi_p_max; or a single-particle measures.csv, fitted here with Eq. 2); else the row of
+studies/single_particle/results/refinement_fits.csv with the study's element type and the
+closest number of elements (the same discretisation as the study's soft disks); else b = 0.14,
+THE PAPER'S VALUE, and φ_p,max = 1 (an assumption: an incompressible disk fills its square box),
+flagged as such in every output.
 """
 
 import sys
@@ -37,8 +39,8 @@ import os  # noqa: E402
 import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-SINGLE_PARTICLE_CANDIDATES = ("studies/single_particle/results/eq2_fit.json",
-                              "studies/single_particle/results/measures.csv")
+SINGLE_PARTICLE_CANDIDATES = ("studies/single_particle/results/refinement_fits.csv",
+                              "studies/single_particle/results/fit.json")
 PAPER_B = 0.14
 ASSUMED_PHI_P_MAX = 1.0
 # Cárdenas-Barrantes et al. 2021, Table 1 (N = 1500), and the fits of Sec. 3
@@ -52,35 +54,51 @@ Z_COLUMNS = ("Z", "Z_no_rattlers", "Z_bulk", "Z_constraints")
 # ------------------------------------------------------------------------------ inputs
 
 
-def single_particle_law(args) -> dict:
+def _law_from_file(path: Path, element: str, elements: int) -> dict:
+    """b and phi_p_max from a single-particle result file (module docstring)."""
+    if path.suffix == ".json":
+        data = json.loads(path.read_text())
+        if not all(isinstance(data.get(k), (int, float)) for k in ("b", "phi_p_max")):
+            raise SystemExit(f"{path}: expected numbers 'b' and 'phi_p_max'")
+        rng = data.get("phi_range")
+        where = f" (phi_p in [{rng[0]:.4f}, {rng[1]:.4f}])" if isinstance(rng, list) and len(rng) == 2 else ""
+        return {"b": float(data["b"]), "phi_p_max": float(data["phi_p_max"]), "source": f"{path}{where}"}
+    with path.open(newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    if rows and {"b", "phi_p_max", "element", "elements"} <= set(rows[0]):  # a table of fits per mesh
+        same = [r for r in rows if r["element"] == element] or rows
+        row = min(same, key=lambda r: abs(int(r["elements"]) - elements))
+        return {"b": float(row["b"]), "phi_p_max": float(row["phi_p_max"]),
+                "source": f"{path}, row {row['element']} x {row['elements']} elements "
+                          f"(phi_p in [{float(row['phi_min']):.4f}, {float(row['phi_max']):.4f}])"}
+    from post.fits import fit_single_particle
+    from post.table import read_measures
+
+    m = read_measures(path)
+    keep = m["equilibrated"].astype(bool) if "equilibrated" in m.dtype.names else np.ones(len(m), bool)
+    pressure = m["P_walls"] if "P_walls" in m.dtype.names else m["pressure_applied"]
+    fit = fit_single_particle(m["phi"][keep], pressure[keep])
+    return {"b": fit.params["b"], "phi_p_max": fit.params["phi_p_max"],
+            "source": f"Eq. 2 fitted to {path} (phi_p in [{fit.phi_range[0]:.4f}, {fit.phi_range[1]:.4f}])"}
+
+
+def single_particle_law(args, study: dict) -> dict:
     """{"b", "phi_p_max", "source", "paper_default": bool} (module docstring for the order)."""
     if args.b is not None:
         return {"b": args.b, "phi_p_max": args.phi_p_max or ASSUMED_PHI_P_MAX, "paper_default": False,
                 "source": "command line (--b)" + ("" if args.phi_p_max else f", phi_p_max assumed {ASSUMED_PHI_P_MAX}")}
-    paths = [Path(args.single_particle)] if args.single_particle else [REPO / c for c in SINGLE_PARTICLE_CANDIDATES]
-    for path in paths:
+    if args.single_particle:
+        path = Path(args.single_particle)
         if path.is_dir():
-            path = path / "out" / "post" / "measures.csv"
+            path = next((p for p in (path / "out" / "post" / "fit.json", path / "out" / "post" / "measures.csv")
+                         if p.is_file()), path / "out" / "post" / "fit.json")
         if not path.is_file():
-            if args.single_particle:
-                raise SystemExit(f"--single-particle {args.single_particle}: no JSON or measures.csv found at {path}")
-            continue
-        if path.suffix == ".json":
-            data = json.loads(path.read_text())
-            if not all(isinstance(data.get(k), (int, float)) for k in ("b", "phi_p_max")):
-                raise SystemExit(f"{path}: expected numbers 'b' and 'phi_p_max'")
-            law = {"b": float(data["b"]), "phi_p_max": float(data["phi_p_max"]), "paper_default": False,
-                   "source": str(path)}
-        else:
-            from post.fits import fit_single_particle
-            from post.table import read_measures
-
-            m = read_measures(path)
-            keep = m["equilibrated"].astype(bool) if "equilibrated" in m.dtype.names else np.ones(len(m), bool)
-            pressure = m["P_walls"] if "P_walls" in m.dtype.names else m["pressure_applied"]
-            fit = fit_single_particle(m["phi"][keep], pressure[keep])
-            law = {"b": fit.params["b"], "phi_p_max": fit.params["phi_p_max"], "paper_default": False,
-                   "source": f"Eq. 2 fitted to {path} (phi_p in [{fit.phi_range[0]:.4f}, {fit.phi_range[1]:.4f}])"}
+            raise SystemExit(f"--single-particle {args.single_particle}: no fit.json or measures.csv at {path}")
+        paths = [path]
+    else:
+        paths = [p for p in (REPO / c for c in SINGLE_PARTICLE_CANDIDATES) if p.is_file()]
+    for path in paths:
+        law = {**_law_from_file(path, study.get("element", "T3"), int(study.get("elements", 92))), "paper_default": False}
         if args.phi_p_max:
             law["phi_p_max"] = args.phi_p_max
         return law
@@ -213,6 +231,22 @@ def analyse(study: dict, tables: dict, law: dict, z_column: str, xi_alpha: str) 
         g["eq5"] = attempt(f"Eq. 5 (kappa {kappa:g}, mu {mu:g})",
                            lambda: fits.fit_eq5(phi, P, law["b"], xi, alpha, Z0, phi0))
         add_fit("eq5", kappa, mu, g["eq5"], ("phi_max",))
+        # scatter between seeds: phi_max of Eq. 5 and Platzer fitted to each seed alone
+        for key in ("eq5", "platzer"):
+            values = []
+            for seed in seeds if len(seeds) > 1 else []:
+                mine = [p for p in sel if p["seed"] == seed]
+                x, y = np.array([p["phi"] for p in mine]), np.array([p["P_over_E"] for p in mine])
+                f0, z0 = mine[0]["phi0"], mine[0]["Z0"]
+                fit = attempt(f"{key} (kappa {kappa:g}, mu {mu:g}, seed {seed})",
+                              lambda: fits.fit_eq5(x, y, law["b"], xi, alpha, z0, f0) if key == "eq5"
+                              else fits.fit_platzer(x, y, f0))
+                if fit is not None:
+                    values.append(fit.params["phi_max"])
+            g[f"{key}_phi_max_seed_std"] = float(np.std(values, ddof=1)) if len(values) > 1 else np.nan
+            result["fit_rows"].append({"law": f"{key} per seed", "kappa": kappa, "mu": mu, "parameter": "phi_max std",
+                                       "value": g[f"{key}_phi_max_seed_std"], "stderr": np.nan, "phi_min": np.nan,
+                                       "phi_max_fitted": np.nan, "rms": np.nan, "rms_relative": np.nan})
         err = {"kappa": kappa, "mu": mu, "n_points": len(sel)}
         for key, fit in (("eq5", g["eq5"]), ("platzer", g["platzer"])):
             e = _errors(fit.predict, phi, P, phi0, fit.params["phi_max"]) if fit else {}
@@ -398,7 +432,7 @@ def summary_markdown(w: Path, study: dict, result: dict) -> str:
     lines = [f"# Mixture compaction: N = {study['n']}, {study['element']} x {study['elements']} elements, "
              f"P/E = {', '.join(f'{p:.3g}' for p in study['pressures_over_E'])}", "",
              f"Z column: `{result['z_column']}`. b = {law['b']:.4g}, phi_p,max = {law['phi_p_max']:.4g} from: {law['source']}.", ""]
-    lines += ["| κ | μ | seeds | φ₀ (paper) | Z₀ (paper) | ξ, α (group) | φ_max Eq. 5 | φ_max Platzer | P₀/E | "
+    lines += ["| κ | μ | seeds | φ₀ ± seed std (paper) | Z₀ ± seed std (paper) | ξ, α (group) | φ_max Eq. 5 (± seed std) | φ_max Platzer (± seed std) | P₀/E | "
               "Eq. 5 err φ rms / max | Platzer err φ rms / max | Eq. 3 err K rms (φ_max(κ) / φ_p,max) | run time s |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for (kappa, mu), g in sorted(groups.items()):
@@ -406,11 +440,18 @@ def summary_markdown(w: Path, study: dict, result: dict) -> str:
         co, e5, pl = g["coordination"], g["eq5"], g["platzer"]
         t = sum(times.get(r["name"], 0.0) for r in study["runs"] if r["kappa"] == kappa and r["mu"] == mu)
         std = f" ± {g['phi0_std']:.3f}" if math.isfinite(g["phi0_std"]) else ""
+        zstd = f" ± {g['Z0_std']:.2f}" if math.isfinite(g["Z0_std"]) else ""
+
+        def pm(key):
+            v = g.get(f"{key}_phi_max_seed_std", np.nan)
+            return f" ± {v:.3f}" if math.isfinite(v) else ""
+
         lines.append(
             f"| {kappa:g} | {mu:g} | {len(g['seeds'])} | {g['phi0']:.3f}{std} ({PAPER_PHI0.get(mu, {}).get(kappa, '–')}) | "
-            f"{g['Z0']:.2f} ({PAPER_Z0.get(mu, {}).get(kappa, '–')}) | "
+            f"{g['Z0']:.2f}{zstd} ({PAPER_Z0.get(mu, {}).get(kappa, '–')}) | "
             + (f"{co.params['xi']:.2f}, {co.params['alpha']:.2f}" if co else "–") + " | "
-            + (f"{e5.params['phi_max']:.4f}" if e5 else "–") + " | " + (f"{pl.params['phi_max']:.4f}" if pl else "–") + " | "
+            + (f"{e5.params['phi_max']:.4f}{pm('eq5')}" if e5 else "–") + " | "
+            + (f"{pl.params['phi_max']:.4f}{pm('platzer')}" if pl else "–") + " | "
             + (f"{pl.params['P0']:.3g}" if pl else "–")
             + f" | {_fmt(e['eq5_phi_rms'], 4)} / {_fmt(e['eq5_phi_max_abs'], 4)} | {_fmt(e['platzer_phi_rms'], 4)} / "
               f"{_fmt(e['platzer_phi_max_abs'], 4)} | {_fmt(e['eq3_rms_rel'], 2)} / {_fmt(e['eq3_single_rms_rel'], 2)} | {t:.0f} |")
@@ -442,7 +483,7 @@ def main(argv=None) -> int:
 
     w = Path(a.workdir)
     study = json.loads((w / "study.json").read_text())
-    law = single_particle_law(a)
+    law = single_particle_law(a, study)
     print(f"b = {law['b']:.4g}, phi_p,max = {law['phi_p_max']:.4g}: {law['source']}")
     tables = measure_runs(w, study, a.threshold)
     if not tables:
