@@ -60,6 +60,11 @@ _COUNT_A, _COUNT_B = 0.2, 0.5
 _SIZE_FACTORS = (1.0, 0.95, 1.05, 0.9, 1.1, 0.85, 0.8)
 _GOOD_ENOUGH = 0.03
 
+# Boundary-graded meshes: element size = boundary segment length + GRADING x distance to the
+# circle, up to the interior size (0.3: about 4100 T6 elements for 480 segments and an interior
+# of 1000 elements, against 5200 for 0.2, with the same boundary resolution).
+GRADING = 0.3
+
 _GMSH_LOCK = threading.Lock()
 
 # gmsh options pinned for every meshing (and restored afterwards when the caller owns the
@@ -262,9 +267,10 @@ def _check_element(element) -> str:
     return element
 
 
-def reference_disk_mesh(n_elements: int = 92, element: str = "T3") -> DiskMesh:
+def reference_disk_mesh(n_elements: int = 92, element: str = "T3", boundary_segments: int | None = None) -> DiskMesh:
     """The unit-radius disk centred at the origin, meshed with about ``n_elements`` triangles
-    of similar size (exactly 92 for the default: 20 boundary segments, mesh size 0.3).
+    of similar size (exactly 92 for the default: 20 boundary segments, mesh size 0.3), or
+    graded toward its boundary when ``boundary_segments`` is given.
 
     Made once per ``(n_elements, element)`` per process (cached); the result is immutable
     (read-only arrays), use :meth:`DiskMesh.placed` for each body. Safe to call from several
@@ -278,19 +284,38 @@ def reference_disk_mesh(n_elements: int = 92, element: str = "T3") -> DiskMesh:
     element : "T3" | "T6"
         Linear triangles, or quadratic ones (``triangle6``) with boundary midside nodes on
         the circle; same triangulation as T3 for a given target.
+    boundary_segments : int, optional
+        A boundary-graded mesh, to resolve contact zones much smaller than the disk: the
+        circle is split into ``boundary_segments`` equal arcs (more than the uniform mesh of
+        ``n_elements`` has) and the element size grows linearly with the distance to the
+        circle, by ``GRADING`` per unit length, up to the interior size of the uniform mesh
+        of ``n_elements``. The element count is then larger than ``n_elements`` (T6, interior
+        of 1000 elements: 240 segments -> about 2000 elements, 960 -> about 8500).
 
     Raises
     ------
     ValueError
-        ``n_elements`` not an integer >= 4, or ``element`` not "T3" / "T6".
+        ``n_elements`` not an integer >= 4, ``element`` not "T3" / "T6", or
+        ``boundary_segments`` not more than the uniform mesh's boundary segments.
     """
-    return _reference_disk_mesh(_check_n_elements(n_elements), _check_element(element))
+    n_elements, element = _check_n_elements(n_elements), _check_element(element)
+    if boundary_segments is not None:
+        uniform = disk_mesh_resolution(n_elements)[0]
+        if not isinstance(boundary_segments, (int, np.integer)) or boundary_segments <= uniform:
+            raise ValueError(f"boundary_segments must be an integer > {uniform} (the boundary segments of "
+                             f"the uniform {n_elements}-element mesh), got {boundary_segments!r}")
+        boundary_segments = int(boundary_segments)
+    return _reference_disk_mesh(n_elements, element, boundary_segments)
 
 
 @functools.lru_cache(maxsize=None)
-def _reference_disk_mesh(n_elements: int, element: str) -> DiskMesh:
+def _reference_disk_mesh(n_elements: int, element: str, boundary_segments: int | None) -> DiskMesh:
     n_segments, size = disk_mesh_resolution(n_elements)
-    points, cells = _gmsh_disk(n_segments, size, 2 if element == "T6" else 1)
+    order = 2 if element == "T6" else 1
+    if boundary_segments is None:
+        points, cells = _gmsh_disk(n_segments, size, order)
+    else:
+        points, cells = _gmsh_disk(boundary_segments, size, order, graded=True)
     return DiskMesh(points=points, cells=cells, element=element)
 
 
@@ -340,6 +365,25 @@ def disk_mesh_resolution(n_elements: int) -> tuple[int, float]:
     return n_best, f_best * _SIZE_PER_SEGMENT / n_best
 
 
+def _grade_from_boundary(curves: list[int], boundary_size: float, size: float, sampling: int) -> None:
+    """Background size field of the current gmsh model: boundary_size on ``curves``, growing
+    linearly with the distance by GRADING up to ``size`` (the boundary no longer sets sizes)."""
+    import gmsh
+
+    field = gmsh.model.mesh.field
+    distance = field.add("Distance")
+    field.setNumbers(distance, "CurvesList", curves)
+    field.setNumber(distance, "Sampling", sampling)
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", boundary_size)
+    field.setNumber(threshold, "SizeMax", size)
+    field.setNumber(threshold, "DistMin", 0.0)
+    field.setNumber(threshold, "DistMax", max(size - boundary_size, 0.0) / GRADING)
+    field.setAsBackgroundMesh(threshold)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0.0)
+
+
 def clear_mesh_cache() -> None:
     """Forget every cached reference mesh, resolution and gmsh result."""
     _reference_disk_mesh.cache_clear()
@@ -353,9 +397,11 @@ def clear_mesh_cache() -> None:
 
 
 @functools.lru_cache(maxsize=64)
-def _gmsh_disk(n_segments: int, size: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+def _gmsh_disk(n_segments: int, size: float, order: int, graded: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Mesh the unit disk with gmsh: boundary circle = one transfinite curve with
-    ``n_segments + 1`` points, interior mesh size ``size``, element order 1 or 2.
+    ``n_segments + 1`` points, interior mesh size ``size``, element order 1 or 2; if
+    ``graded``, the size grows from the boundary segment length by GRADING per unit distance to
+    the circle (a Distance + Threshold background field) up to ``size``.
 
     Returns read-only ``points (n, 2)`` (used nodes only, renumbered in gmsh tag order) and
     ``cells (ne, 3 | 6)`` (CCW, meshio order)."""
@@ -379,8 +425,11 @@ def _gmsh_disk(n_segments: int, size: float, order: int) -> tuple[np.ndarray, np
             try:
                 disk = gmsh.model.occ.addDisk(0.0, 0.0, 0.0, 1.0, 1.0)
                 gmsh.model.occ.synchronize()
-                for _, curve in gmsh.model.getBoundary([(2, disk)], oriented=False):
+                curves = [curve for _, curve in gmsh.model.getBoundary([(2, disk)], oriented=False)]
+                for curve in curves:
                     gmsh.model.mesh.setTransfiniteCurve(curve, int(n_segments) + 1)
+                if graded:
+                    _grade_from_boundary(curves, 2.0 * math.pi / n_segments, size, 4 * n_segments)
                 gmsh.model.mesh.generate(2)
                 if order == 2:
                     gmsh.model.mesh.setOrder(2)

@@ -6,9 +6,9 @@ a box of four frictionless walls touching it; pressure stages P/E log-spaced fro
 --p-max. Reduced units: R = 1, E = 1, density 1.
 
 Quasi-static settings (measured, see README.md): theta = 1 (backward Euler: a step tends to an
-implicit static step with contact), h = 2 (about a third of the period of the slowest
-wall-disk mode), walls of the disk's mass, no wall damping; a stage is equilibrated when phi
-changes by less than 1e-6 (relative) over check_every = 2 steps.
+implicit static step with contact), h = 10 (the measured optimum), walls of the disk's mass, no
+wall damping; a stage is equilibrated when phi changes by less than 1e-5 (relative) over
+check_every = 2 steps and the walls' inertial number is below 1e-4.
 """
 
 from __future__ import annotations
@@ -62,17 +62,19 @@ def face_on(points: np.ndarray, loop: np.ndarray) -> np.ndarray:
     return points @ rot.T
 
 
-def write(folder, *, element: str = "T6", elements: int = 92, volumetric: str | None = None,
+def write(folder, *, element: str = "T6", elements: int = 92, boundary_segments: int | None = None,
+          volumetric: str | None = None,
           p_min: float = 1e-3, p_max: float = 1.0, stages: int = 16, time_step: float = 10.0,
           theta: float = 1.0, wall_mass: float | None = None, phi_tolerance: float = 1e-5,
           check_every: int = 2, newton_tolerance: float = 1e-7, nlgs_tolerance: float = 1e-8,
           pressures=None) -> Path:
-    """Write the scene folder; returns its path. ``pressures`` overrides the log-spaced stages."""
+    """Write the scene folder; returns its path. ``pressures`` overrides the log-spaced stages;
+    ``boundary_segments`` grades the mesh toward the boundary (pre.mesh.reference_disk_mesh)."""
     from pre.mesh import reference_disk_mesh
     from pre.scene import write_scene
 
     volumetric = volumetric or ("mean_dilatation" if element == "T6" else "standard")
-    mesh = reference_disk_mesh(elements, element)
+    mesh = reference_disk_mesh(elements, element, boundary_segments)
     p = face_on(mesh.points, mesh.boundary_nodes)
     bounds = (float(p[:, 0].min()), float(p[:, 0].max()), float(p[:, 1].min()), float(p[:, 1].max()))
     if pressures is None:
@@ -90,6 +92,9 @@ def main(argv=None) -> int:
     ap.add_argument("--workdir", required=True, help="study folder; the scene goes to WORKDIR/scene")
     ap.add_argument("--element-type", choices=("T3", "T6"), default="T6")
     ap.add_argument("--elements", type=int, default=92, help="target number of triangles (default 92)")
+    ap.add_argument("--boundary-segments", type=int, default=None,
+                    help="grade the mesh: this many boundary segments, sizes growing inward to the interior "
+                         "size of the --elements mesh (resolves small contact zones; default: uniform)")
     ap.add_argument("--volumetric", choices=("standard", "mean_dilatation"), default=None,
                     help="volumetric term (default: mean_dilatation for T6, standard for T3)")
     ap.add_argument("--p-min", type=float, default=1e-3, help="first P/E (default 1e-3)")
@@ -101,7 +106,8 @@ def main(argv=None) -> int:
     ap.add_argument("--phi-tolerance", type=float, default=1e-5, help="equilibrium: relative phi change (1e-5)")
     ap.add_argument("--check-every", type=int, default=2, help="steps between equilibrium checks")
     a = ap.parse_args(argv)
-    folder = write(Path(a.workdir) / "scene", element=a.element_type, elements=a.elements, volumetric=a.volumetric,
+    folder = write(Path(a.workdir) / "scene", element=a.element_type, elements=a.elements,
+                   boundary_segments=a.boundary_segments, volumetric=a.volumetric,
                    p_min=a.p_min, p_max=a.p_max, stages=a.stages, time_step=a.time_step, theta=a.theta,
                    wall_mass=a.wall_mass, phi_tolerance=a.phi_tolerance, check_every=a.check_every)
     print(f"scene written to {folder}")

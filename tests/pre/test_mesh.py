@@ -146,6 +146,40 @@ def test_boundary_nodes_on_unit_circle_ccw_loop(element, target):
         assert len(b) == (20 if element == "T3" else 40)
 
 
+# ---- boundary-graded meshes ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("segments", [120, 240])
+def test_graded_mesh_boundary_and_sizes(segments):
+    from pre.mesh import GRADING
+
+    m = reference_disk_mesh(300, "T6", boundary_segments=segments)
+    uniform = reference_disk_mesh(300, "T6")
+    b = m.boundary_nodes
+    assert len(b) == 2 * segments  # vertices and midside nodes, all on the circle
+    np.testing.assert_allclose(np.hypot(*m.points[b].T), 1.0, atol=1e-12)
+    assert m.n_elements > uniform.n_elements
+    assert abs(m.area - math.pi) < abs(uniform.area - math.pi)
+    # element size (equilateral-equivalent edge) against the distance to the circle: the size
+    # field h(d) = 2 pi / segments + GRADING d, capped by the interior size (gmsh meets a size
+    # field within a factor of about 1.5)
+    corners = m.points[m.cells[:, :3]]
+    d = 1.0 - np.hypot(*corners.mean(axis=1).T)
+    size = np.sqrt(4.0 * m.element_areas / math.sqrt(3.0))
+    target = np.minimum(2 * math.pi / segments + GRADING * d, disk_mesh_resolution(300)[1])
+    ratio = size / target
+    assert 0.5 < np.median(ratio) < 1.5
+    assert np.all(ratio < 2.5) and np.all(ratio > 0.3)
+
+
+def test_graded_mesh_needs_more_segments_than_uniform():
+    n_uniform = disk_mesh_resolution(300)[0]
+    with pytest.raises(ValueError, match="boundary_segments"):
+        reference_disk_mesh(300, "T6", boundary_segments=n_uniform)
+    with pytest.raises(ValueError, match="boundary_segments"):
+        reference_disk_mesh(300, "T6", boundary_segments=200.5)
+
+
 # ---- placement ------------------------------------------------------------------------------
 
 
