@@ -66,7 +66,8 @@ def _law_from_file(path: Path, element: str, elements: int) -> dict:
     with path.open(newline="") as stream:
         rows = list(csv.DictReader(stream))
     if rows and {"b", "phi_p_max", "element", "elements"} <= set(rows[0]):  # a table of fits per mesh
-        same = [r for r in rows if r["element"] == element] or rows
+        uniform = [r for r in rows if not r.get("boundary_segments")] or rows  # the study's meshes are uniform
+        same = [r for r in uniform if r["element"] == element] or uniform
         row = min(same, key=lambda r: abs(int(r["elements"]) - elements))
         return {"b": float(row["b"]), "phi_p_max": float(row["phi_p_max"]),
                 "source": f"{path}, row {row['element']} x {row['elements']} elements "
@@ -178,13 +179,15 @@ def analyse(study: dict, tables: dict, law: dict, z_column: str, xi_alpha: str) 
     groups = sorted({(p["kappa"], p["mu"]) for p in points})
     result = {"law": law, "z_column": z_column, "groups": {}, "points": points, "fit_rows": [], "notes": []}
 
-    def add_fit(law_name, kappa, mu, fit, names):
+    def add_fit(law_name, kappa, mu, fit, names, shift=0.0):
+        """One fits.csv row per parameter; the fitted range is phi (minus ``shift``: the
+        coordination fits run on 1 + phi - phi0, reported as phi - phi0)."""
         for n in names:
             result["fit_rows"].append({"law": law_name, "kappa": kappa, "mu": mu, "parameter": n,
                                        "value": fit.params.get(n, fit.fixed.get(n)) if fit else np.nan,
                                        "stderr": fit.stderr.get(n, 0.0) if fit else np.nan,
-                                       "phi_min": fit.phi_range[0] if fit else np.nan,
-                                       "phi_max_fitted": fit.phi_range[1] if fit else np.nan,
+                                       "phi_min": fit.phi_range[0] - shift if fit else np.nan,
+                                       "phi_max_fitted": fit.phi_range[1] - shift if fit else np.nan,
                                        "rms": fit.rms if fit else np.nan,
                                        "rms_relative": fit.rms_relative if fit else np.nan})
 
@@ -200,7 +203,7 @@ def analyse(study: dict, tables: dict, law: dict, z_column: str, xi_alpha: str) 
     dZ = np.array([p["Z"] - p["Z0"] for p in points])
     glob = attempt("coordination law over all runs", lambda: fits.fit_coordination(1.0 + dphi, dZ, 1.0, 0.0))
     result["coordination_all"] = glob
-    add_fit("coordination", "all", "all", glob, ("xi", "alpha"))
+    add_fit("coordination", "all", "all", glob, ("xi", "alpha"), shift=1.0)
 
     for kappa, mu in groups:
         sel = [p for p in points if p["kappa"] == kappa and p["mu"] == mu]
@@ -222,7 +225,7 @@ def analyse(study: dict, tables: dict, law: dict, z_column: str, xi_alpha: str) 
         d_Z = np.array([p["Z"] - p["Z0"] for p in sel])
         g["coordination"] = attempt(f"coordination (kappa {kappa:g}, mu {mu:g})",
                                     lambda: fits.fit_coordination(1.0 + d_phi, d_Z, 1.0, 0.0))
-        add_fit("coordination", kappa, mu, g["coordination"], ("xi", "alpha"))
+        add_fit("coordination", kappa, mu, g["coordination"], ("xi", "alpha"), shift=1.0)
         source = g["coordination"] if xi_alpha == "group" else glob
         xi, alpha = (source.params["xi"], source.params["alpha"]) if source else (PAPER_XI, PAPER_ALPHA)
         if source is None:
