@@ -9,7 +9,8 @@ Public API
 - :class:`DiskMesh`: frozen record ``points (n_nodes, 2)``, ``cells (n_elements, 3 | 6)``,
   ``element "T3" | "T6"``; ``area``, ``element_areas``, ``boundary_nodes``, ``placed``,
   ``write`` / ``read`` (meshio, ``.msh`` or ``.vtu``), ``to_meshio``.
-- :func:`reference_disk_mesh`: the cached unit-disk mesh with about ``n_elements`` triangles.
+- :func:`reference_disk_mesh`: the cached unit-disk mesh with about ``n_elements`` triangles,
+  or graded toward the circle (``boundary_segments``).
 - :func:`disk_mesh_resolution`: the boundary segment count and mesh size chosen for a target.
 - :func:`clear_mesh_cache`: forget every cached mesh (tests, memory).
 

@@ -1,20 +1,26 @@
 """Single-particle study: mesh refinement (T3 and T6) and the regression data of the test suite.
 
-For every (element type, target element count) runs pre.py, compute.py and post.py in
-WORKDIR/<element>_<n>/, then writes in WORKDIR:
+Three series of levels: uniform T3 and uniform T6 (about 30 to 3000 similar triangles), and
+boundary-graded T6 ("T6g": the interior of the 1000-element mesh, the boundary split into 240,
+480, 960 segments, sizes growing inward; pre.mesh.reference_disk_mesh), run over the first 12
+of the 16 stages (P/E <= 0.16, phi_p <= 0.95) with h = 2. The graded series
+resolves the contact zones, whose half-width at P/E = 1e-3 (about 0.04 R) is below the element
+size of every uniform mesh here. For every level it runs pre.py, compute.py and post.py in
+WORKDIR/<level>/, then writes in WORKDIR:
 
-- refinement.csv: element, elements, pressure (P/E), phi_p for every equilibrated stage;
-- refinement_differences.csv: for consecutive levels of one element type, the largest
-  relative difference of phi_p and of P_p/E (P/E at equal phi_p, interpolated in log P)
-  over the stages with phi_p <= 0.95;
-- refinement_fits.csv: Eq. 2 (b, phi_p,max, fitted phi range) per level;
+- refinement.csv: series, elements, boundary_segments, P/E, phi_p for every equilibrated stage;
+- refinement_differences.csv: for consecutive levels of one series, the largest relative
+  difference of phi_p (at equal P) and of P_p/E (at equal phi_p, interpolated in log P) over
+  the stages with phi_p <= 0.95;
+- refinement_fits.csv: Eq. 2 (b, phi_p,max, fitted phi range) per level, with its element
+  count, steps and run time;
 - refinement.png: all the curves (paper Fig. 5).
 
-With --data DIR it also writes DIR/reference_T6_<n>.csv (the finest T6 curve) and
+With --data DIR it also writes DIR/reference_T6g.csv (the finest graded T6 curve) and
 DIR/default_T6_92.csv (the default mesh), the regression data of
 tests/deformable/test_single_particle_regression.py.
 
-    python studies/single_particle/refine.py --workdir /tmp/sp_refine [--jobs 2]
+    python studies/single_particle/refine.py --workdir /tmp/sp_refine [--jobs 2] [--levels T6g:1000:960,...]
 """
 
 from __future__ import annotations
@@ -32,15 +38,33 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
 
-LEVELS = {"T3": (30, 92, 300, 1000, 3000), "T6": (30, 92, 300, 1000, 3000)}
+# series -> levels (target elements, boundary segments or None for a uniform mesh)
+SERIES = {"T3": [(n, None) for n in (30, 92, 300, 1000, 3000)],
+          "T6": [(n, None) for n in (30, 92, 300, 1000, 3000)],
+          "T6g": [(1000, b) for b in (240, 480, 960)]}
 PHI_COMPARE = 0.95
+# The graded levels stop at the 12th of the default 16 stages (P/E = 10^-0.8 = 0.16, phi_p ~ 0.95,
+# the end of the convergence criterion's range): beyond it the flats hold hundreds of contact
+# nodes and a step of the 8700-element level costs minutes.
+GRADED_STAGES = 12
+GRADED_P_MAX = float(np.geomspace(1e-3, 1.0, 16)[GRADED_STAGES - 1])
+# ... and take h = 2 instead of 10: with hundreds of contact nodes on one body the NLGS sweeps per
+# step grow like h^2 (README, quasi-static settings) and dominate; at h = 10 the 960-segment
+# level needed 10^4-4x10^4 sweeps per step and stalled at P/E = 0.016.
+GRADED_TIME_STEP = 2.0
 
 
-def run_level(work: Path, element: str, n: int, extra: list[str]) -> Path:
-    d = work / f"{element}_{n}"
+def level_name(series: str, n: int, segments: int | None) -> str:
+    return f"{series}_{n}" if segments is None else f"{series}_{n}_b{segments}"
+
+
+def run_level(work: Path, series: str, n: int, segments: int | None) -> Path:
+    d = work / level_name(series, n, segments)
     if not (d / "out" / "COMPLETE").is_file() and not (d / "out" / "post" / "fit.json").is_file():
         py = sys.executable
-        subprocess.run([py, str(HERE / "pre.py"), "--workdir", str(d), "--element-type", element,
+        extra = [] if segments is None else ["--boundary-segments", str(segments), "--p-max", repr(GRADED_P_MAX),
+                                             "--stages", str(GRADED_STAGES), "--time-step", repr(GRADED_TIME_STEP)]
+        subprocess.run([py, str(HERE / "pre.py"), "--workdir", str(d), "--element-type", series[:2],
                         "--elements", str(n), *extra], check=True, stdout=subprocess.DEVNULL)
         with open(d / "compute.log", "w") as log:
             subprocess.run([py, str(HERE / "compute.py"), "--workdir", str(d)], check=True, stdout=log,
@@ -68,51 +92,71 @@ def differences(coarse, fine) -> tuple[float, float]:
     return dphi, dp
 
 
+def element_count(d: Path) -> int:
+    """Number of triangles of the level's mesh (from its bodies file)."""
+    from meshio import vtu
+
+    return sum(len(c.data) for c in vtu.read(d / "scene" / "bodies.vtu").cells if c.type.startswith("triangle"))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--workdir", required=True)
     ap.add_argument("--jobs", type=int, default=1, help="levels run in parallel (processes)")
-    ap.add_argument("--elements", default=None, help="comma-separated T3:N,T6:N list (default: all levels)")
-    ap.add_argument("--data", default=None, help="write the finest and the default T6 curves in this folder")
+    ap.add_argument("--levels", default=None,
+                    help="comma-separated SERIES:N[:SEGMENTS] list, e.g. T6:92,T6g:1000:480 (default: all levels)")
+    ap.add_argument("--data", default=None, help="write the finest graded and the default T6 curves in this folder")
     a = ap.parse_args(argv)
     work = Path(a.workdir)
     work.mkdir(parents=True, exist_ok=True)
-    levels = ([(e, int(n)) for e, n in (x.split(":") for x in a.elements.split(","))] if a.elements
-              else [(e, n) for e, ns in LEVELS.items() for n in ns])
+    if a.levels:
+        levels = []
+        for item in a.levels.split(","):
+            parts = item.split(":")
+            if parts[0] not in SERIES or len(parts) not in (2, 3):
+                ap.error(f"--levels {item!r}: expected SERIES:N[:SEGMENTS] with SERIES in {sorted(SERIES)}")
+            levels.append((parts[0], int(parts[1]), int(parts[2]) if len(parts) == 3 else None))
+    else:
+        levels = [(e, n, b) for e, ls in SERIES.items() for n, b in ls]
+    # the costliest levels first, so that parallel jobs end together
+    by_cost = sorted(levels, key=lambda lv: (lv[2] or 0, lv[1] * (4 if lv[0] != "T3" else 1)), reverse=True)
     with ThreadPoolExecutor(a.jobs) as pool:
-        dirs = dict(zip(levels, pool.map(lambda en: run_level(work, en[0], en[1], []), levels)))
+        done = dict(zip(by_cost, pool.map(lambda lv: run_level(work, *lv), by_cost)))
+    dirs = {lv: done[lv] for lv in levels}
     curves = {k: read_curve(d) for k, d in dirs.items()}
+    counts = {k: element_count(d) for k, d in dirs.items()}
     with open(work / "refinement.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["element", "elements", "P_over_E", "phi_p"])
-        for (e, n), (p, f) in curves.items():
+        w.writerow(["series", "elements", "boundary_segments", "P_over_E", "phi_p"])
+        for (e, n, b), (p, f) in curves.items():
             for pi, fi in zip(p, f):
-                w.writerow([e, n, repr(float(pi)), repr(float(fi))])
+                w.writerow([e, counts[(e, n, b)], b or "", repr(float(pi)), repr(float(fi))])
     with open(work / "refinement_differences.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["element", "coarse", "fine", "max_rel_diff_phi", "max_rel_diff_P_at_equal_phi"])
-        for e in LEVELS:
-            ns = sorted(n for ee, n in curves if ee == e)
-            for n0, n1 in zip(ns, ns[1:]):
-                dphi, dp = differences(curves[(e, n0)], curves[(e, n1)])
-                w.writerow([e, n0, n1, f"{dphi:.3g}", f"{dp:.3g}"])
+        w.writerow(["series", "coarse", "fine", "max_rel_diff_phi", "max_rel_diff_P_at_equal_phi"])
+        for e in SERIES:
+            ls = sorted((k for k in curves if k[0] == e), key=counts.get)
+            for k0, k1 in zip(ls, ls[1:]):
+                dphi, dp = differences(curves[k0], curves[k1])
+                w.writerow([e, counts[k0], counts[k1], f"{dphi:.3g}", f"{dp:.3g}"])
     with open(work / "refinement_fits.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["element", "elements", "b", "phi_p_max", "phi_min", "phi_max", "n_points", "steps", "seconds"])
-        for (e, n), d in dirs.items():
+        w.writerow(["element", "elements", "boundary_segments", "b", "phi_p_max", "phi_min", "phi_max", "n_points",
+                    "steps", "seconds"])
+        for (e, n, b), d in dirs.items():
             fit = json.loads((d / "out" / "post" / "fit.json").read_text())
             log = (d / "compute.log").read_text().strip().splitlines()[-1] if (d / "compute.log").is_file() else ""
             parts = log.split()
             steps, secs = (parts[0], parts[3]) if len(parts) > 3 and parts[1] == "steps" else ("", "")
-            w.writerow([e, n, f"{fit['b']:.4f}", f"{fit['phi_p_max']:.4f}", f"{fit['phi_range'][0]:.4f}",
-                        f"{fit['phi_range'][1]:.4f}", fit["n_points"], steps, secs])
+            w.writerow([e[:2], counts[(e, n, b)], b or "", f"{fit['b']:.4f}", f"{fit['phi_p_max']:.4f}",
+                        f"{fit['phi_range'][0]:.4f}", f"{fit['phi_range'][1]:.4f}", fit["n_points"], steps, secs])
     from post.plots import new_figure, save_figure
 
-    fig, axes = new_figure(1, 2, size=(5.0, 4.0))
-    for k, (e, ax) in enumerate(zip(LEVELS, axes[0])):
-        for (ee, n), (p, f) in sorted(curves.items()):
-            if ee == e:
-                ax.plot(p, f, "o-", ms=2.5, label=f"{e}, {n} el.")
+    fig, axes = new_figure(1, len(SERIES), size=(5.0, 4.0))
+    for e, ax in zip(SERIES, axes[0]):
+        for k, (p, f) in sorted(curves.items(), key=lambda kv: counts[kv[0]]):
+            if k[0] == e:
+                ax.plot(p, f, "o-", ms=2.5, label=f"{e}, {counts[k]} el." + (f", {k[2]} boundary seg." if k[2] else ""))
         ax.set_xscale("log")
         ax.set_xlabel(r"$P_p/E$")
         ax.set_ylabel(r"$\phi_p$")
@@ -121,14 +165,18 @@ def main(argv=None) -> int:
     if a.data:
         data = Path(a.data)
         data.mkdir(parents=True, exist_ok=True)
-        finest = max(n for e, n in curves if e == "T6")
-        for n, name in ((finest, f"reference_T6_{finest}.csv"), (92, "default_T6_92.csv")):
-            if ("T6", n) not in curves:
+        graded = [k for k in curves if k[0] == "T6g"]
+        finest = max(graded, key=counts.get) if graded else None
+        for k, name in ((finest, "reference_T6g.csv"), (("T6", 92, None), "default_T6_92.csv")):
+            if k not in curves:
                 continue
-            p, f = curves[("T6", n)]
+            p, f = curves[k]
             with open(data / name, "w", newline="") as fh:
-                fh.write(f"# single-particle curve, T6 mean dilatation, {n} target elements, equilibrated "
-                         f"stages (studies/single_particle/refine.py, default pre.py settings)\n")
+                fh.write(f"# single-particle curve, T6 mean dilatation, {counts[k]} elements"
+                         + (f" graded to {k[2]} boundary segments" if k[2] else "")
+                         + ", equilibrated stages (studies/single_particle/refine.py, "
+                         + (f"pre.py settings of the graded series: {GRADED_STAGES} stages, h = {GRADED_TIME_STEP:g})\n"
+                            if k[2] else "default pre.py settings)\n"))
                 w = csv.writer(fh)
                 w.writerow(["P_over_E", "phi_p"])
                 for pi, fi in zip(p, f):

@@ -4,10 +4,10 @@ studies/single_particle/refine.py (studies/single_particle/data/):
 
 - default_T6_92.csv, the same mesh and settings: phi_p within 2e-4 (the stages stop when phi
   changes by less than 1e-5 over two steps; repeated runs agree to about 1e-5);
-- reference_T6_3000.csv, the converged refinement: phi_p within 1.5 % while phi_p <= 0.95. The
-  refinement study justifies the tolerance: between 92 and 300 elements phi_p changes by up
-  to 1.07 %, between 300 and 1000 by 0.25 %, between 1000 and 3000 by 0.06 %, so the default
-  mesh lies about 1.1 % from the limit (README, "Convergence").
+- reference_T6g.csv, the converged refinement (boundary-graded T6, 960 boundary segments, 8690
+  elements; its first 12 stages, phi_p <= 0.95): phi_p within TOLERANCE. The refinement study
+  justifies it: the default mesh lies 0.15-1.13 % from this curve, which moves by less than
+  0.002 % in phi_p between its last two levels (README, "Convergence").
 """
 
 import csv
@@ -20,6 +20,7 @@ from tests.deformable import scenes
 
 DATA = scenes.ROOT / "studies" / "single_particle" / "data"
 STUDY = scenes.ROOT / "studies" / "single_particle"
+TOLERANCE = 0.015
 
 
 def read(path):
@@ -41,9 +42,9 @@ def test_default_mesh_curve(tmp_path):
     np.testing.assert_allclose(p, p_default, rtol=1e-4)
     np.testing.assert_allclose(phi, phi_default, atol=2e-4)
 
-    reference = sorted(DATA.glob("reference_T6_*.csv"))[-1]
-    p_ref, phi_ref = read(reference)
-    np.testing.assert_allclose(p, p_ref, rtol=1e-4)
+    p_ref, phi_ref = read(DATA / "reference_T6g.csv")  # the first stages only (phi_p <= 0.95)
+    n = len(p_ref)
+    np.testing.assert_allclose(p[:n], p_ref, rtol=2e-3)  # the same stages (its walls carry P within 1e-3)
     sel = phi_ref <= 0.95
-    assert np.abs(phi[sel] / phi_ref[sel] - 1).max() < 0.015
+    assert np.abs(phi[:n][sel] / phi_ref[sel] - 1).max() < TOLERANCE
     assert (tmp_path / "out" / "post" / "single_particle.png").stat().st_size > 0
