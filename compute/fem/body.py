@@ -286,17 +286,20 @@ def _volumetric_geometric(
                 v += w * J
                 V += w
                 continue
-            dU = volumetric_response(J, kappa)[1]
-            for a in range(n_en):
-                for b in range(n_en):
-                    kdata[kmap[e, 2 * a, 2 * b + 1]] += dU * hessian[q, a, b]
-                    kdata[kmap[e, 2 * a + 1, 2 * b]] -= dU * hessian[q, a, b]
+            _add_area_hessian(kdata, kmap[e], volumetric_response(J, kappa)[1], hessian[q])
         if mean_dilatation:
-            dU = volumetric_response(v / V, kappa)[1]
-            for a in range(n_en):
-                for b in range(n_en):
-                    kdata[kmap[e, 2 * a, 2 * b + 1]] += dU * hessian[0, a, b]
-                    kdata[kmap[e, 2 * a + 1, 2 * b]] -= dU * hessian[0, a, b]
+            _add_area_hessian(kdata, kmap[e], volumetric_response(v / V, kappa)[1], hessian[0])
+
+
+@numba.njit(cache=True, inline="always")
+def _add_area_hessian(kdata: np.ndarray, kmap_e: np.ndarray, dU: float, hessian_q: np.ndarray) -> None:
+    """kdata += dU H for one element: H the (skew, x-y coupling) Hessian of the area, scattered
+    through the element's map of (row dof, column dof) -> position in kdata."""
+    n_en = hessian_q.shape[0]
+    for a in range(n_en):
+        for b in range(n_en):
+            kdata[kmap_e[2 * a, 2 * b + 1]] += dU * hessian_q[a, b]
+            kdata[kmap_e[2 * a + 1, 2 * b]] -= dU * hessian_q[a, b]
 
 
 @numba.njit(cache=True, error_model="numpy")
