@@ -106,10 +106,13 @@ def main(argv=None) -> int:
     ap.add_argument("--phi-tolerance", type=float, default=1e-5, help="equilibrium: relative phi change (1e-5)")
     ap.add_argument("--check-every", type=int, default=2, help="steps between equilibrium checks")
     a = ap.parse_args(argv)
-    folder = write(Path(a.workdir) / "scene", element=a.element_type, elements=a.elements,
-                   boundary_segments=a.boundary_segments, volumetric=a.volumetric,
-                   p_min=a.p_min, p_max=a.p_max, stages=a.stages, time_step=a.time_step, theta=a.theta,
-                   wall_mass=a.wall_mass, phi_tolerance=a.phi_tolerance, check_every=a.check_every)
+    try:
+        folder = write(Path(a.workdir) / "scene", element=a.element_type, elements=a.elements,
+                       boundary_segments=a.boundary_segments, volumetric=a.volumetric,
+                       p_min=a.p_min, p_max=a.p_max, stages=a.stages, time_step=a.time_step, theta=a.theta,
+                       wall_mass=a.wall_mass, phi_tolerance=a.phi_tolerance, check_every=a.check_every)
+    except ValueError as exc:  # the mesh request (--elements, --boundary-segments)
+        ap.error(str(exc))
     print(f"scene written to {folder}")
     return 0
 
