@@ -17,6 +17,7 @@ import numpy as np
 
 from compute.model import Model
 from compute.scene import read_scene
+from compute.stepping.moreau_jean import Stepper
 from pre.jamming import jammed_rigid_scene
 
 
@@ -25,7 +26,7 @@ def measure(n: int, steps: int, workdir: Path) -> dict:
     scene = jammed_rigid_scene(workdir / f"n{n}", n, 0.2, 1, [1.0], overrides={"solver.time_step": 0.1})
     prep = time.perf_counter() - t0
     model = Model(read_scene(scene))
-    stepper = model.make_stepper()
+    stepper = Stepper(model)
     state = model.initial_state()
     stepper.step(state, 1.0)  # compile / detect outside the timing
     sweeps, contacts = [], []

@@ -13,7 +13,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("scene", help="scene folder written by pre (scene.toml + bodies file)")
     p.add_argument("--out", required=True, help="output folder (frames, history, checkpoints)")
     p.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
+    p.add_argument("--threads", type=int, default=None,
+                   help="threads of the parallel kernels (default: NUMBA_NUM_THREADS, else every core)")
     a = p.parse_args(argv)
+    from compute.threads import configure
+
+    try:
+        configure(a.threads)
+    except ValueError as exc:
+        p.error(str(exc))
     from compute.run import run
 
     try:

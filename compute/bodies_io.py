@@ -7,6 +7,7 @@ The same layout, with extra fields, is used for the bodies frames written by com
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +20,19 @@ OVERLAP_TOLERANCE = 1e-3  # relative to the smaller radius: a jammed NSCD state 
 # interpenetrations at the solver tolerance (well below this); anything larger is an error
 
 
+@dataclass(frozen=True)
+class DeformableBody:
+    """Mesh of one deformable body: reference nodes (n, 2) and cells (ne, 3|6)."""
+
+    body: int
+    points: np.ndarray
+    cells: np.ndarray
+    element: str
+
+
 def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
     """Read and validate ``path``; return the body arrays of :class:`compute.scene.Scene`."""
     from meshio import vtu  # not meshio.read, which prints and calls sys.exit on a corrupt file
-
-    from compute.scene import DeformableBody
 
     path = Path(path)
     if not path.is_file():

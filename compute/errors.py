@@ -20,3 +20,8 @@ class SimulationError(RuntimeError):
 
     Raised after what was written so far has been flushed; the message is a diagnosis.
     """
+
+
+class StepFailure(Exception):
+    """A step attempt that must not be accepted (the message is the diagnosis): the step
+    control cuts the step, and raises :class:`SimulationError` when cutting does not help."""

@@ -28,7 +28,7 @@ def write_frame_files(out: Path, frame: int, model: Model, state: State, time_st
     so that branch vectors and body positions of the frame agree.
     """
     contacts = model.frame_contacts(state)
-    centres = model.body_centres(state.q)
+    centres = model.centres(state.q)
     ci = centres[contacts.body_i]
     cj = np.where((contacts.body_j < 0)[:, None], contacts.point, centres[np.maximum(contacts.body_j, 0)])
     output.write_contacts(output.frame_path(out, "contacts", frame), contacts, ci, cj, time_step)
@@ -36,5 +36,5 @@ def write_frame_files(out: Path, frame: int, model: Model, state: State, time_st
                        wall_forces(contacts, time_step), pressure, model.wall_velocity(state.v))
     fields = model.frame_fields(state)
     write_bodies(output.frame_path(out, "bodies", frame), centres, model.scene.radius,
-                 model.scene.body_material, meshes=model.current_meshes(state.q),
+                 model.scene.body_material, meshes=model.meshes(state.q),
                  point_data=fields["point"], cell_data=fields["cell"])

@@ -1,98 +1,128 @@
-"""The mechanical model built from a scene: dof layout, masses, radii, friction, and measures of
-a configuration (box, packing fraction)."""
+"""The mechanical model of a scene: a list of body groups, their dof layout, the contact
+families between their kinds, and the measures of a configuration (box, packing fraction).
+
+Dofs (q, v) are laid out group after group: rigid disks (x, y, rotation), the four walls, then
+the soft groups' nodes (x, y); all soft nodes of the model are numbered globally in that order
+(node g has the dofs ``node_dof0 + 2 g + (0, 1)``), which the soft contact rows use.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from compute.scene import Scene
-from compute.state import Layout, State
+from compute.bodies.rigid import RigidDisks
+from compute.bodies.soft import SoftBodies
+from compute.bodies.walls import Walls
+from compute.contact.families import families_of
+from compute.fem import NeoHookean
+from compute.state import State
 
 
 class Model:
-    """Rigid disks and four walls (deformable bodies are added by :mod:`compute.deformable`).
+    """Groups built from a validated :class:`compute.scene.Scene`.
 
-    Arrays: ``radii`` (nr,), ``mass`` (nr,), ``inertia`` (nr,), ``rigid_material`` (nr,)
-    indices into ``friction`` (n_mat, n_mat); ``wall_mass`` scalar.
+    ``rigid`` (RigidDisks, possibly empty), ``walls`` (Walls), ``soft`` (list of SoftBodies, one
+    per reference mesh and material); ``groups`` all of them in dof order; ``families`` the
+    contact families present; ``friction`` (n_mat, n_mat). Soft-node arrays for the contact
+    kernels: ``loop_nodes`` (n_b,) boundary loops (global node ids, CCW, body after body) with
+    offsets ``loop_start`` (nd + 1,), ``node_body`` (N,) soft index of each node, ``soft_ids``
+    (nd,) and ``soft_material`` (nd,) of each soft index.
     """
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene):
         self.scene = scene
-        ids = scene.rigid_ids
-        order = np.argsort(ids)
-        self.rigid_ids = ids[order]
-        self.radii = scene.rigid_radii[order]
-        self.rigid_material = scene.body_material[self.rigid_ids]
-        rho = np.array([scene.materials[scene.material_names[m]].density for m in self.rigid_material])
-        self.mass = rho * np.pi * self.radii**2
-        self.inertia = 0.5 * self.mass * self.radii**2
-        self.fixed = np.array([scene.materials[scene.material_names[m]].fixed for m in self.rigid_material], bool)
-        self.friction = scene.friction
-        self.wall_mass = scene.walls.mass
-        self.layout = Layout(n_rigid=len(self.rigid_ids))
-        self._initial_centres = scene.rigid_centres[order]
+        mats = [scene.materials[n] for n in scene.material_names]
+        rid = scene.rigid_ids
+        rmat = scene.body_material[rid]
+        self.rigid = RigidDisks(rid, scene.rigid_centres, scene.rigid_radii,
+                                [mats[m].density for m in rmat], [mats[m].fixed for m in rmat], rmat)
         self.diameter = scene.mean_diameter
-        densities = [m.density for m in scene.materials.values()]
-        self.density = float(np.mean(densities))
+        self.density = float(np.mean([m.density for m in scene.materials.values()]))
+        w = scene.walls
+        self.walls = Walls(w.bounds, w.mass, w.control, w.damping_inertial_number, self.density, self.diameter,
+                           dof0=self.rigid.dofs.stop)
+        self.soft = self._soft_groups(scene, self.walls.dofs.stop)
+        self.groups = [self.rigid, self.walls, *self.soft]
+        self.n_dofs = self.groups[-1].dofs.stop
+        self.friction = scene.friction
+        self.skin = scene.solver.skin
+        kinds = {g.kind for g in self.groups if len(g)}
+        self.families = families_of(kinds)
+        self.node_dof0 = self.walls.dofs.stop
+        self.soft_ids = np.concatenate([np.zeros(0, np.int64)] + [g.ids for g in self.soft])
+        self.soft_material = np.concatenate([np.zeros(0, np.int64)] + [np.full(g.B, g.material) for g in self.soft])
+        counts = np.concatenate([np.zeros(0, np.int64)] + [np.full(g.B, g.n_nodes) for g in self.soft])
+        self.node_body = np.repeat(np.arange(len(counts)), counts).astype(np.int64)
+        self.loop_nodes = np.concatenate([np.zeros(0, np.int64)] + [g.loop_nodes for g in self.soft]).astype(np.int64)
+        sizes = np.concatenate([np.zeros(0, np.int64)] + [np.diff(g.loop_start) for g in self.soft])
+        self.loop_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
 
-    def make_stepper(self):
-        """The time stepper for this model."""
-        from compute.stepper import Stepper
+    @staticmethod
+    def _soft_groups(scene, dof0: int) -> list[SoftBodies]:
+        """One group per (material, connectivity) of the scene's deformable bodies."""
+        from compute.errors import SceneError
 
-        return Stepper(self)
+        groups: dict = {}
+        for d in scene.deformable:
+            key = (int(scene.body_material[d.body]), d.element, d.cells.shape, d.cells.tobytes())
+            groups.setdefault(key, []).append(d)
+        out, node0 = [], 0
+        for (m, element, _, _), bodies in groups.items():
+            mat = scene.materials[scene.material_names[m]]
+            try:
+                g = SoftBodies([d.body for d in bodies], np.stack([d.points for d in bodies]), bodies[0].cells, element,
+                               NeoHookean(mat.young, mat.poisson, mat.density), mat.volumetric, m, dof0, node0)
+            except ValueError as exc:
+                raise SceneError(scene.path / "bodies.vtu", f"cells of the bodies {[d.body for d in bodies][:10]}",
+                                 "valid counter-clockwise disk meshes", str(exc)) from None
+            out.append(g)
+            dof0, node0 = g.dofs.stop, node0 + g.B * g.n_nodes
+        return out
 
-    # --- state -------------------------------------------------------------------------
+    # --- state -------------------------------------------------------------------------------
     def initial_state(self) -> State:
-        n = self.layout.n_dofs
-        q = np.zeros(n)
-        r = self.rigid_view(q)
-        r[:, :2] = self._initial_centres
-        q[self.layout.wall_dof0:self.layout.wall_dof0 + 4] = self.scene.walls.bounds
-        return State(q=q, v=np.zeros(n))
+        q = np.zeros(self.n_dofs)
+        for g in self.groups:
+            g.initial(q)
+        return State(q=q, v=np.zeros(self.n_dofs))
 
-    def rigid_view(self, a: np.ndarray) -> np.ndarray:
-        """(nr, 3) view (x, y, rotation) of the rigid part of q or v."""
-        return a[: 3 * self.layout.n_rigid].reshape(-1, 3)
+    @property
+    def nonlinear(self) -> bool:
+        """True when some group needs Newton iterations within a step."""
+        return any(g.nonlinear and len(g) for g in self.groups)
 
+    def soft_nodes(self, a: np.ndarray) -> np.ndarray:
+        """(N, 2) view of all soft node positions (or velocities) of q (or v)."""
+        return a[self.node_dof0:].reshape(-1, 2)
+
+    def soft_circles(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Bounding circles of the soft boundary loops: centres (nd, 2), radii (nd,)."""
+        parts = [g.bounding_circles(q) for g in self.soft]
+        return (np.concatenate([np.zeros((0, 2))] + [c for c, _ in parts]),
+                np.concatenate([np.zeros(0)] + [r for _, r in parts]))
+
+    def tracked_points(self, q) -> np.ndarray:
+        """Points (k, 2) whose motion invalidates the Verlet lists: rigid centres, soft boundary nodes."""
+        return np.vstack([self.rigid.centres(q), self.soft_nodes(q)[self.loop_nodes]])
+
+    # --- measures -----------------------------------------------------------------------------
     def bounds(self, q: np.ndarray) -> np.ndarray:
         """Box (xmin, xmax, ymin, ymax) from the wall dofs."""
-        w = self.layout.wall_dof0
-        return q[w:w + 4]
+        return self.walls.bounds(q)
 
     def wall_velocity(self, v: np.ndarray) -> np.ndarray:
-        w = self.layout.wall_dof0
-        return v[w:w + 4]
+        return self.walls.bounds(v)
 
-    def body_centres(self, q: np.ndarray) -> np.ndarray:
-        """Centres (n_bodies, 2) of all bodies in the global body numbering."""
+    def centres(self, q: np.ndarray) -> np.ndarray:
+        """Centres (n_bodies, 2) of all bodies in the global body numbering (soft: centroids)."""
         c = np.zeros((self.scene.n_bodies, 2))
-        c[self.rigid_ids] = self.rigid_view(q)[:, :2]
+        c[self.rigid.ids] = self.rigid.centres(q)
+        for g in self.soft:
+            c[g.ids] = g.centres(q)
         return c
 
-    def frame_contacts(self, state: State):
-        """All contacts at the state's configuration with the impulses of its memory (a frame's)."""
-        from compute import detection
-
-        return detection.narrow_phase(self, state)
-
-    def current_meshes(self, q: np.ndarray) -> dict:
-        """Deformable meshes in the current configuration (none for a rigid model)."""
-        return {}
-
-    def frame_fields(self, state: State) -> dict:
-        """Point and cell fields of the bodies frame (layout of compute.bodies_io.write_bodies)."""
-        r, v = self.rigid_view(state.q), self.rigid_view(state.v)
-        z = np.zeros((len(r), 1))
-        zero = np.zeros(len(r))
-        point = {"displacement": {"rigid": np.hstack([r[:, :2] - self._initial_centres, z])},
-                 "velocity": {"rigid": np.hstack([v[:, :2], z])}}
-        cell = {"rotation": {"rigid": r[:, 2]}, "angular_velocity": {"rigid": v[:, 2]},
-                "cauchy_stress": {"rigid": np.zeros((len(r), 9))}, "pressure": {"rigid": zero},
-                "von_mises": {"rigid": zero}}
-        return {"point": point, "cell": cell}
-
     def particle_area(self, q: np.ndarray) -> float:
-        return float(np.pi * np.sum(self.radii**2))
+        return self.rigid.area(q) + sum(g.area(q) for g in self.soft)
 
     def phi(self, q: np.ndarray) -> float:
         """Packing fraction φ = V_p / V with current particle areas."""
@@ -100,16 +130,31 @@ class Model:
         return self.particle_area(q) / ((b[1] - b[0]) * (b[3] - b[2]))
 
     def kinetic_energy(self, v: np.ndarray) -> float:
-        rv = self.rigid_view(v)
-        wv = self.wall_velocity(v)
-        return float(0.5 * (np.sum(self.mass * np.sum(rv[:, :2] ** 2, axis=1)) + np.sum(self.inertia * rv[:, 2] ** 2)
-                            + self.wall_mass * np.sum(wv**2)))
+        return float(sum(g.kinetic_energy(v) for g in self.groups))
 
-    def gravity_forces(self) -> np.ndarray:
-        """External generalised forces (n_dofs,) of gravity."""
-        f = np.zeros(self.layout.n_dofs)
-        g = self.scene.loading.gravity
-        r = self.rigid_view(f)
-        r[:, 0] = np.where(self.fixed, 0.0, self.mass * g[0])
-        r[:, 1] = np.where(self.fixed, 0.0, self.mass * g[1])
-        return f
+    def frame_contacts(self, state: State):
+        """All contacts at the state's configuration with the impulses of its memory (a frame's)."""
+        from compute.contact import detection
+
+        return detection.narrow_phase(self, state)
+
+    def meshes(self, q: np.ndarray) -> dict:
+        """{soft body id: (points (n, 2), cells, element)} in the current configuration."""
+        out = {}
+        for g in self.soft:
+            out.update(g.meshes(q))
+        return out
+
+    def frame_fields(self, state: State) -> dict:
+        """Point and cell fields of the bodies frame (layout of compute.bodies_io.write_bodies)."""
+        point, cell = {}, {}
+        rp, rc = self.rigid.frame_fields(state.q, state.v)
+        for fields, rigid in ((point, rp), (cell, rc)):
+            for name, value in rigid.items():
+                fields[name] = {"rigid": value, "deformable": {}}
+        for g in self.soft:
+            sp, sc = g.frame_fields(state.q, state.v)
+            for fields, soft in ((point, sp), (cell, sc)):
+                for name, value in soft.items():
+                    fields[name]["deformable"].update(zip(g.ids.tolist(), value))
+        return {"point": point, "cell": cell}

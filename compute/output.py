@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute.contact_geometry import Contacts
+from compute.contact.rows import Contacts
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
                  "xmin", "xmax", "ymin", "ymax"]

@@ -2,7 +2,7 @@
 
 A stage ends when, between two checks ``check_every`` steps apart, φ varies by less than
 ``phi_tolerance`` (relative) and the inertial number is below ``inertial_tolerance``
-(:func:`compute.walls.inertial_number`), and, when ``force_tolerance`` is set, the contact force
+(:func:`compute.bodies.walls.inertial_number`), and, when ``force_tolerance`` is set, the contact force
 on every wall balances the applied one within that relative tolerance (slow is not static: a
 damped wall can creep while its force is still out of balance). Its last state is written as an
 equilibrated frame.
@@ -22,8 +22,9 @@ from compute.errors import SimulationError
 from compute.model import Model
 from compute.scene import read_scene
 from compute.state import State
+from compute.stepping.moreau_jean import Stepper
 from compute.frames import wall_forces
-from compute.walls import inertial_number, wall_lengths
+from compute.bodies.walls import inertial_number, wall_lengths
 
 CHECKPOINT = "checkpoint/state.npz"
 
@@ -36,7 +37,7 @@ class Run:
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
-        self.stepper = self.model.make_stepper()
+        self.stepper = Stepper(self.model)
         self.state = self._start(resume)
         self.history = output.History(self.out / "history.csv", self.state.step if resume else None)
 
@@ -173,11 +174,7 @@ class Run:
 
 
 def build_model(scene) -> Model:
-    """The model of a scene (rigid disks and walls; deformable bodies when the scene has them)."""
-    if scene.deformable:
-        from compute.deformable import DeformableModel
-
-        return DeformableModel(scene)
+    """The model of a scene: its body groups and contact families."""
     return Model(scene)
 
 

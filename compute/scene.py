@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from compute.bodies_io import OVERLAP_TOLERANCE, DeformableBody, read_bodies
 from compute.errors import SceneError
 
 SCHEMA_VERSION = 1
@@ -79,16 +80,6 @@ class Output:
     frames: str
     every_steps: int
     checkpoint_every_steps: int
-
-
-@dataclass(frozen=True)
-class DeformableBody:
-    """Mesh of one deformable body: reference nodes (n, 2) and cells (ne, 3|6)."""
-
-    body: int
-    points: np.ndarray
-    cells: np.ndarray
-    element: str
 
 
 @dataclass
@@ -193,8 +184,6 @@ def read_scene(scene_dir: str | Path) -> Scene:
     bodies_file = bodies_tab.get("file")
     if not isinstance(bodies_file, str):
         raise SceneError(file, "bodies.file", "a file name relative to the scene folder", bodies_file)
-    from compute.bodies_io import read_bodies
-
     bodies = read_bodies(scene_dir / bodies_file, names, materials)
     _check_inside_box(scene_dir / bodies_file, bodies, walls)
     return Scene(path=scene_dir, materials=materials, material_names=list(names),
@@ -324,8 +313,6 @@ def _read_output(r: _Reader) -> Output:
 
 def _check_inside_box(file: Path, bodies: dict, walls: Walls) -> None:
     """Every body inside the box, up to the overlap tolerance of a jammed NSCD state."""
-    from compute.bodies_io import OVERLAP_TOLERANCE
-
     c, rad = bodies["rigid_centres"], bodies["rigid_radii"]
     slack = OVERLAP_TOLERANCE * float(bodies["radius"].min())
     xmin, xmax, ymin, ymax = np.array(walls.bounds) + np.array([-slack, slack, -slack, slack])

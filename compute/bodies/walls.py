@@ -18,6 +18,63 @@ import numpy as np
 INWARD = np.array([1.0, -1.0, 1.0, -1.0])
 
 
+class Walls:
+    """The four walls as a body group: dofs ``dof0 + (0..3)`` = positions (xmin, xmax, ymin,
+    ymax); ``mass`` of each wall; ``control`` "pressure" | "velocity"; ``damping`` the target
+    inertial number of the viscous damping (0: none); ``density``, ``diameter`` of the
+    particles (for the damping's time scale). ``held`` (4,) bool: walls kept at rest whatever
+    the control (zero velocity and compliance)."""
+
+    kind = "wall"
+    nonlinear = False
+    ids = np.array([-1, -2, -3, -4])
+
+    def __init__(self, bounds, mass: float, control: str, damping: float, density: float, diameter: float,
+                 dof0: int):
+        self.initial_bounds = np.asarray(bounds, float)
+        self.mass, self.control, self.damping = mass, control, damping
+        self.density, self.diameter = density, diameter
+        self.dof0 = dof0
+        self.dofs = slice(dof0, dof0 + 4)
+        self.held = np.zeros(4, bool)
+
+    def __len__(self) -> int:
+        return 4
+
+    def bounds(self, q: np.ndarray) -> np.ndarray:
+        """Box (xmin, xmax, ymin, ymax) (4,), a view of q."""
+        return q[self.dofs]
+
+    def initial(self, q: np.ndarray) -> None:
+        q[self.dofs] = self.initial_bounds
+
+    # --- the step -----------------------------------------------------------------------
+    def begin_step(self, q, v, h, theta, load) -> None:
+        """Free velocity and compliance 1 / m̂ of the walls for this step (module docstring)."""
+        if self.control == "velocity":
+            self._v_free = INWARD * load.wall_speed
+            self._inverse = np.zeros(4)
+        else:
+            b, vw = self.bounds(q), v[self.dofs]
+            force = pressure_forces(b, load.pressure)
+            c = damping_coefficients(b, load.pressure, self.damping, self.density, self.diameter)
+            m_hat = self.mass + theta * h * c
+            self._v_free = vw + h * (force - c * vw) / m_hat
+            self._inverse = 1.0 / m_hat
+        self._v_free = np.where(self.held, 0.0, self._v_free)
+        self._inverse = np.where(self.held, 0.0, self._inverse)
+
+    def free_velocity(self, v, out) -> None:
+        out[self.dofs] = self._v_free
+
+    def diagonal(self) -> tuple[np.ndarray, np.ndarray]:
+        """1x1 compliance blocks: dofs (4,), values 1 / m̂ (4,)."""
+        return np.arange(self.dofs.start, self.dofs.stop), self._inverse
+
+    def kinetic_energy(self, v) -> float:
+        return float(0.5 * self.mass * np.sum(v[self.dofs] ** 2))
+
+
 def wall_lengths(bounds: np.ndarray) -> np.ndarray:
     """Current lengths (4,) of the walls of the box bounds (xmin, xmax, ymin, ymax)."""
     lx, ly = bounds[1] - bounds[0], bounds[3] - bounds[2]

@@ -33,22 +33,23 @@ class Compliance:
     values: np.ndarray
 
     @classmethod
-    def build(cls, n_dofs: int, diagonal_dofs: np.ndarray, diagonal: np.ndarray,
-              dense: list[tuple[np.ndarray, np.ndarray]] = ()) -> "Compliance":
-        """1x1 blocks ``diagonal`` (k,) on ``diagonal_dofs`` (k,), plus (dofs (m,), matrix (m, m)) blocks."""
+    def build(cls, n_dofs: int, diagonals=(), dense=()) -> "Compliance":
+        """From 1x1 blocks ``diagonals`` = [(dofs (k,), values (k,))] and dense blocks ``dense`` =
+        [(start (B + 1,), dofs (m,), values)]: per group, block b over dofs[start[b]:start[b+1]]
+        with row-major values (concatenated, sizes (start[b+1] - start[b])**2); empty blocks allowed."""
         diag = np.zeros(n_dofs)
-        diag[diagonal_dofs] = diagonal
+        for d, values in diagonals:
+            diag[d] = values
         block = np.full(n_dofs, -1, np.int64)
         pos = np.zeros(n_dofs, np.int64)
-        sizes = [len(d) for d, _ in dense]
+        sizes = np.concatenate([np.zeros(0, np.int64)] + [np.diff(st) for st, _, _ in dense])
+        all_dofs = np.concatenate([np.zeros(0, np.int64)] + [np.asarray(d, np.int64) for _, d, _ in dense])
+        values = np.concatenate([np.zeros(0)] + [np.asarray(v, float) for _, _, v in dense])
         start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-        offset = np.concatenate([[0], np.cumsum(np.square(sizes))]).astype(np.int64)
-        dofs = np.concatenate([np.zeros(0, np.int64)] + [np.asarray(d, np.int64) for d, _ in dense])
-        values = np.concatenate([np.zeros(0)] + [np.asarray(m, float).ravel() for _, m in dense])
-        for b, (d, _) in enumerate(dense):
-            block[d] = b
-            pos[d] = np.arange(len(d))
-        return cls(diag, block, pos, start, dofs, offset, values)
+        offset = np.concatenate([[0], np.cumsum(sizes**2)]).astype(np.int64)
+        block[all_dofs] = np.repeat(np.arange(len(sizes)), sizes)
+        pos[all_dofs] = np.arange(len(all_dofs)) - np.repeat(start[:-1], sizes)
+        return cls(diag, block, pos, start, all_dofs, offset, values)
 
     def arrays(self) -> tuple:
         return self.diagonal, self.block, self.pos, self.start, self.dofs, self.offset, self.values

@@ -1,6 +1,6 @@
 """Contact rows of deformable boundaries (numba kernels): node-wall, node-disk, node-segment.
 
-Conventions of :mod:`compute.contact_geometry`: body i is the *candidate* (the deformable body
+Conventions of :mod:`compute.contact.rows`: body i is the *candidate* (the deformable body
 owning the boundary node), body j the *antagonist* (a wall, a rigid disk, or the deformable body
 owning the segment); n points from i to j, t = (-n_y, n_x), u = H^T v with
 u_n = n . (v_j(x_c) - v_i(x_c)) = d gap / dt, and the impulse r = r_n n + r_t t acts on j.

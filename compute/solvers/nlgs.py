@@ -13,10 +13,32 @@ Convergence: sqrt(Σ|Δr|²) ≤ tol · sqrt(Σ|r|²) over one sweep (LMGC90's q
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
-from compute.compliance import add_compliance
+from compute.contact.compliance import add_compliance
+from compute.solvers import SolveReport
+
+
+@dataclass(frozen=True)
+class NLGS:
+    """Nonlinear Gauss–Seidel: stops when the relative impulse change over a sweep is below
+    ``tolerance`` or after ``max_sweeps``; ``relaxation`` in (0, 1]."""
+
+    tolerance: float
+    max_sweeps: int
+    relaxation: float = 1.0
+
+    def solve(self, problem) -> SolveReport:
+        """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
+        carr = problem.compliance.arrays()
+        v = problem.v_free.copy()
+        apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
+        sweeps, residual = nlgs_solve(problem.dof, problem.hn, problem.ht, problem.W, problem.gap_term, problem.mu,
+                                      problem.impulse, v, *carr, self.tolerance, self.max_sweeps, self.relaxation)
+        return SolveReport(v, sweeps, residual)
 
 
 @numba.njit(cache=True, inline="always")

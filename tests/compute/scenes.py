@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from compute.model import Model
+from compute.stepping.moreau_jean import Stepper
 from compute.scene import read_scene
 from pre.scene import default_parameters, write_scene
 
@@ -24,4 +25,4 @@ def model_of(folder: Path, params: dict, centres, radii, materials) -> tuple[Mod
     """Write the scene, read it back through compute's validation, return (model, stepper)."""
     write_scene(folder, params, np.asarray(centres, float), np.asarray(radii, float), materials)
     model = Model(read_scene(folder))
-    return model, model.make_stepper()
+    return model, Stepper(model)

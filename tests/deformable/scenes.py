@@ -81,26 +81,32 @@ def write(folder, params: dict, soft=(), rigid=()) -> Path:
 
 def load(folder):
     """(model, stepper, state) of a scene folder."""
-    from compute.run import build_model
+    from compute.model import Model
     from compute.scene import read_scene
+    from compute.stepping.moreau_jean import Stepper
 
-    model = build_model(read_scene(folder))
-    return model, model.make_stepper(), model.initial_state()
+    model = Model(read_scene(folder))
+    return model, Stepper(model), model.initial_state()
+
+
+def fe_body(model, k: int = 0):
+    """An FEBody (the per-body reference implementation) of soft body k of the first soft group,
+    in its reference configuration."""
+    from compute.fem import FEBody
+
+    g = model.soft[0]
+    b = g.batch
+    return FEBody(b.X[k], b.cells, b.element.name, b.material, b.volumetric)
+
+
+def body_nodes(model, a, k: int = 0):
+    """(n, 2) view of soft body k's nodes (first soft group) in q or v."""
+    return model.soft[0].nodes(a)[k]
 
 
 def pin_walls(stepper, walls=(0, 1)) -> None:
     """Hold the given walls still (zero velocity, zero compliance) whatever the wall control."""
-    original = stepper.free_velocity
-
-    def free_velocity(state, pressure, wall_speed):
-        v, dofs, diag = original(state, pressure, wall_speed)
-        for w in walls:
-            d = stepper.wall_dofs[w]
-            v[d] = 0.0
-            diag[np.flatnonzero(dofs == d)] = 0.0
-        return v, dofs, diag
-
-    stepper.free_velocity = free_velocity
+    stepper.model.walls.held[list(walls)] = True
 
 
 def wall_forces(model, state, h: float) -> np.ndarray:

@@ -1,10 +1,10 @@
 """Contact rows of deformable boundaries: u_n = H_n^T v is the rate of the gap, conventions of
-compute.contact_geometry, candidates found by the broad phase and warm-start memory."""
+compute.contact.rows, candidates found by the broad phase and warm-start memory."""
 
 import numpy as np
 import pytest
 
-from compute import deformable_detection
+from compute.contact import detection
 from tests.deformable import scenes
 
 
@@ -22,16 +22,20 @@ def mixed(tmp_path_factory):
 
 def contacts_at(model, state):
     state.q_detect = None
-    deformable_detection.detect(model, state)
-    return deformable_detection.narrow_phase(model, state)
+    detection.detect(model, state)
+    return detection.narrow_phase(model, state)
+
+
+def soft_families(model):
+    return [f.name for f in model.families if "soft" in f.kinds]
 
 
 def test_every_family_is_found(mixed):
     model, _, state = mixed
     c = contacts_at(model, state)
-    fams = {f: len(state.pairs[f]) for f in deformable_detection.FAMILIES}
+    fams = {f: len(state.pairs[f]) for f in soft_families(model)}
     assert all(n > 0 for n in fams.values()), fams
-    assert len(c) == sum(fams.values())
+    assert len(c) == sum(len(state.pairs[f.name]) for f in model.families)
     # both directions of node-segment contacts between bodies 0 and 1
     seg = state.pairs["node_segment"]
     assert set(model.node_body[seg[:, 0]]) == {0, 1} and set(seg[:, 1]) == {0, 1}
@@ -47,14 +51,14 @@ def test_normal_rows_are_the_gap_rate(mixed):
     eps = 1e-7
     q0 = state.q.copy()
     state.q = q0 + eps * v
-    c1 = deformable_detection.narrow_phase(model, state)  # same candidates (no re-detection)
+    c1 = detection.narrow_phase(model, state)  # same candidates (no re-detection)
     state.q = q0
     un = np.sum(np.where(c0.dof >= 0, c0.hn * v[np.maximum(c0.dof, 0)], 0.0), axis=1)
     rate = (c1.gap - c0.gap) / eps
     # node-segment: the normal's rotation is neglected, exact only at zero gap: error ~ gap
     tol = 1e-5 + 2.0 * np.abs(c0.gap) * np.abs(v).max()
     assert np.all(np.abs(rate - un) <= tol)
-    exact = (c0.body_j < 0) | np.isin(c0.body_j, model.rigid_ids)
+    exact = (c0.body_j < 0) | np.isin(c0.body_j, model.rigid.ids)
     np.testing.assert_allclose(rate[exact], un[exact], atol=1e-5)
 
 
@@ -68,23 +72,23 @@ def test_rows_conventions(mixed):
     for k in np.flatnonzero(both):
         v = np.zeros(len(state.q))
         v[model.node_dof0::2] = 1.0  # every deformable node moves along +x
-        rig = model.layout.rigid_dof0()
+        rig = model.rigid.dof_of()
         v[rig] = 1.0  # and every rigid disk too
         used = c.dof[k] >= 0
         assert abs(np.sum(c.hn[k, used] * v[c.dof[k, used]])) < 1e-12
     # deformable bodies have their centroid as centre: branch of a pair = centroid_j - centroid_i
-    centres = model.body_centres(state.q)
+    centres = model.centres(state.q)
     np.testing.assert_allclose(c.branch[both], centres[c.body_j[both]] - centres[c.body_i[both]])
 
 
 def test_warm_start_memory_survives_redetection(mixed):
     model, _, state = mixed
     contacts_at(model, state)
-    for f in deformable_detection.FAMILIES:
+    for f in soft_families(model):
         state.impulses[f] = np.arange(2 * len(state.pairs[f]), dtype=float).reshape(-1, 2) + 1.0
-    kept = {f: (state.pairs[f].copy(), state.impulses[f].copy()) for f in deformable_detection.FAMILIES}
+    kept = {f: (state.pairs[f].copy(), state.impulses[f].copy()) for f in soft_families(model)}
     state.q_detect = None
-    deformable_detection.detect(model, state)
+    detection.detect(model, state)
     for f, (pairs, imp) in kept.items():
         np.testing.assert_array_equal(state.pairs[f][:, :2], pairs[:, :2])
         np.testing.assert_array_equal(state.impulses[f], imp)
@@ -93,8 +97,8 @@ def test_warm_start_memory_survives_redetection(mixed):
 def test_verlet_criterion(mixed):
     model, _, state = mixed
     contacts_at(model, state)
-    assert not deformable_detection.needs_detection(model, state)
+    assert not detection.needs_detection(model, state)
     skin = model.scene.solver.skin * model.diameter
     node = model.loop_nodes[3]
     state.q[model.node_dof0 + 2 * node] += 0.6 * skin
-    assert deformable_detection.needs_detection(model, state)
+    assert detection.needs_detection(model, state)

@@ -5,7 +5,7 @@ segment, both directions)."""
 import numpy as np
 import pytest
 
-from compute import deformable_detection
+from compute.contact import detection
 from tests.deformable import scenes
 
 WIDTH = 6.0
@@ -23,9 +23,9 @@ def settle(model, stepper, state, pressure, max_steps=300, tol=1e-10):
 
 def family_forces(model, state, h, family):
     """Sum over the contacts of one deformable family of the force on body j, (2,)."""
-    c = deformable_detection.narrow_phase(model, state)
+    c = detection.narrow_phase(model, state)
     k = 0
-    for f in deformable_detection.FAMILIES:
+    for f in (fam.name for fam in model.families):
         m = len(state.pairs[f])
         if f == family:
             sl = slice(k, k + m)
@@ -44,7 +44,7 @@ def test_disk_on_a_wall_under_gravity(tmp_path, element):
     scenes.write(tmp_path, params, soft=[(points, cells)])
     model, stepper, state = scenes.load(tmp_path)
     settle(model, stepper, state, 0.0)
-    weight = g * model.bodies[0].mass.sum() / 2  # sum of M's entries = 2 x mass
+    weight = g * scenes.fe_body(model).mass.sum() / 2  # sum of M's entries = 2 x mass
     forces = scenes.wall_forces(model, state, stepper.h)
     assert forces[2] == pytest.approx(weight, rel=1e-8)
     assert np.abs(forces[[0, 1, 3]]).max() == 0.0
@@ -93,7 +93,7 @@ def test_two_deformable_disks_stacked(tmp_path):
     force = 0.01
     settle(model, stepper, state, force / (right - left), tol=1e-9)
     walls = scenes.wall_forces(model, state, stepper.h)
-    c = deformable_detection.narrow_phase(model, state)
+    c = detection.narrow_phase(model, state)
     seg = c.body_j >= 0
     assert set(np.unique(c.body_i[seg & (c.impulse[:, 0] > 0)])) == {0, 1}  # both directions work
     t = np.column_stack([-c.normal[:, 1], c.normal[:, 0]])

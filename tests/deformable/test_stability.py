@@ -60,9 +60,9 @@ def kicked(tmp_path, speed):
     params = scenes.parameters((-5.0, 5.0, -5.0, 5.0), time_step=0.1, theta=0.5, control="velocity")
     scenes.write(tmp_path, params, soft=[scenes.disk(92, "T6")])
     model, stepper, state = scenes.load(tmp_path)
-    x = model.body_nodes(state.q, 0)
+    x = scenes.body_nodes(model, state.q)
     node = int(np.argmin(np.linalg.norm(x, axis=1)))
-    state.v[model.layout.body_dofs(0)][2 * node] = speed
+    scenes.body_nodes(model, state.v)[node, 0] = speed
     return model, stepper, state
 
 
@@ -73,7 +73,7 @@ def test_element_about_to_invert_is_cut(tmp_path):
     for _ in range(5):
         stepper.step(state, 0.0, 0.0)
         assert np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v))
-        assert model.bodies[0].inverted_elements(model.body_nodes(state.q, 0)).size == 0
+        assert scenes.fe_body(model).inverted_elements(scenes.body_nodes(model, state.q)).size == 0
     assert stepper.stats["cuts"] > 0
 
 

@@ -1,0 +1,224 @@
+r"""Soft bodies: all deformable bodies sharing one reference mesh connectivity and material,
+batched (arrays shaped (bodies, nodes, 2)).
+
+Each body is total-Lagrangian, plane strain, neo-Hookean (:mod:`compute.fem`). Over a step of
+size h with θ, for every body b and the Newton iterate v of its end-of-step velocity:
+
+    x_θ = x_n + θ h ((1 - θ) v⁻ + θ v)
+    R_b(v) = M_b (v - v⁻) + h f_int(x_θ) - h M_b g                                   (residual)
+    M̂_b = ∂R_b/∂v = M_b + h²θ² K_t(x_θ)
+    v_free,b = v - M̂_b⁻¹ R_b(v)                      (the body's free velocity at this iterate)
+    v_b = v_free,b + M̂_b⁻¹ (H r)_b                     (interior recovery after the contact solve)
+
+At convergence R_b(v) = (H r)_b exactly, whatever matrix the iterations used. The factorised
+matrices live in :class:`~compute.bodies.soft_matrix.NewtonMatrices`. Bodies whose own correction
+fell below the Newton tolerance are *settled*: their residual, tangent and factorisation are
+not recomputed in the following iterations of the step (a chord step for them; the free velocity
+of the last evaluation stays valid to first order in their remaining correction).
+
+The centre of a body (branch vectors, frames) is its current centroid; its area the exact
+current area of its elements.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from compute.errors import StepFailure
+from compute.bodies.soft_matrix import IndefiniteMatrix, NewtonMatrices
+from compute.fem.batch import BodyBatch
+from compute.timing import TIMES
+
+
+class SoftBodies:
+    """B soft bodies of one mesh and material. ``ids`` (B,) global body ids; ``material`` the
+    scene's material index; ``dof0`` the first dof (body b, node a: dof0 + 2 (b n + a) + (0, 1));
+    ``node0`` the index of its first node among all soft nodes of the model."""
+
+    kind = "soft"
+    nonlinear = True
+    REFACTOR_CHANGE = 0.05  # refactorise when max |M̂ - M̂_factorised| > this x max |M̂_factorised|
+
+    def __init__(self, ids, X, cells, element: str, material, volumetric: str, material_index: int,
+                 dof0: int, node0: int):
+        self.ids = np.asarray(ids, np.int64)
+        self.batch = BodyBatch(np.asarray(X, float), cells, element, material, volumetric)
+        self.matrices = None  # NewtonMatrices, built at the first step (not needed for measures)
+        self.material = material_index
+        self.B, self.n_nodes = self.batch.B, self.batch.n_nodes
+        self.dof0, self.node0 = dof0, node0
+        self.dofs = slice(dof0, dof0 + 2 * self.B * self.n_nodes)
+        nb = len(self.batch.boundary)
+        self.loop_nodes = (node0 + self.n_nodes * np.arange(self.B)[:, None] + self.batch.boundary).ravel()
+        self.loop_start = nb * np.arange(self.B + 1)
+        self._gravity = None
+
+    def __len__(self) -> int:
+        return self.B
+
+    def nodes(self, a: np.ndarray) -> np.ndarray:
+        """(B, n_nodes, 2) view of this group's part of q or v."""
+        return a[self.dofs].reshape(self.B, self.n_nodes, 2)
+
+    def initial(self, q: np.ndarray) -> None:
+        self.nodes(q)[:] = self.batch.X
+
+    # --- the step -------------------------------------------------------------------------
+    def begin_step(self, q, v, h, theta, load) -> None:
+        if self.matrices is None:
+            self.matrices = NewtonMatrices(self.batch)
+        g = tuple(load.gravity)
+        if self._gravity is None or self._gravity[0] != g:
+            self._gravity = (g, self.batch.mass_times(np.tile(np.asarray(g, float), (self.B, self.n_nodes))))
+        self._h, self._theta = h, theta
+        self._x_n = self.nodes(q).copy()
+        self._v_n = v[self.dofs].reshape(self.B, -1).copy()
+        self._j_n = self.batch.jacobians(self._x_n)
+        self._v_free = np.zeros_like(self._v_n)
+        self._settled = np.zeros(self.B, bool)
+        self._force = np.zeros(self.B, bool)
+        self._stale = np.zeros(self.B, bool)
+        self.iteration = 0
+
+    def positions(self, v_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x_θ, x_new), both (B, n, 2), for end-of-step velocities v_b (B, 2n)."""
+        h, th = self._h, self._theta
+        dx = h * ((1.0 - th) * self._v_n + th * v_b).reshape(self.B, self.n_nodes, 2)
+        return self._x_n + th * dx, self._x_n + dx
+
+    def free_velocity(self, v, out) -> None:
+        """v_free = v - M̂⁻¹ R(v) of every unsettled body (module docstring), written to ``out``."""
+        self.iteration += 1
+        h, th, batch = self._h, self._theta, self.batch
+        vb = v[self.dofs].reshape(self.B, -1)
+        active = ~self._settled
+        if active.any():
+            x_theta, _ = self.positions(vb)
+            f = np.zeros_like(vb)
+            k = np.zeros_like(batch.mass_data)
+            with TIMES("assembly"):
+                ok = batch.internal_force_and_tangent(x_theta, active, f, k)
+            if not ok.all():
+                b = int(np.flatnonzero(~ok)[0])
+                raise StepFailure(self._inverted(b, x_theta[b], "x_theta"))
+            residual = batch.mass_times(vb - self._v_n) + h * f - h * self._gravity[1]
+            if not np.isfinite(residual[active]).all():
+                b = int(np.flatnonzero(active & ~np.isfinite(residual).all(axis=1))[0])
+                raise StepFailure(f"body {self.ids[b]}: non-finite internal forces (Newton iteration {self.iteration})")
+            data = batch.mass_data + (h * th) ** 2 * k
+
+            def geometric(mask, x_theta=x_theta):
+                g = np.zeros_like(batch.mass_data)
+                batch.volumetric_geometric(x_theta, mask, g)
+                return (h * th) ** 2 * g
+
+            try:
+                with TIMES("factorisation"):
+                    refactored = self.matrices.update(data, geometric, (h, th), self.REFACTOR_CHANGE, self._force, active)
+            except IndefiniteMatrix as exc:
+                raise StepFailure(f"body {', '.join(str(i) for i in self.ids[exc.bodies][:10])}: {exc} "
+                                  f"(Newton iteration {self.iteration}, h = {h:.4g})") from None
+            self._stale = active & ~refactored
+            self._force[:] = False
+            with TIMES("solves"):
+                step = self.matrices.solve(residual, active)
+            self._v_free[active] = vb[active] - step[active]
+        out[self.dofs] = self._v_free.ravel()
+
+    def factorisation_stamp(self) -> int:
+        """Changes whenever some body of the group refactorises (compliance blocks to redo)."""
+        return int(self.matrices.version.sum())
+
+    def contraction_was_slow(self) -> None:
+        """The last iteration contracted the correction too little: the bodies that kept an old
+        factorisation refactorise at the next one."""
+        self._force |= self._stale
+
+    def settle(self, v_old, v_new, tol: float) -> None:
+        """Mark the bodies whose position correction h θ |v_new - v_old| is below ``tol``."""
+        dv = np.abs(v_new[self.dofs] - v_old[self.dofs]).reshape(self.B, -1).max(axis=1)
+        self._settled |= self._h * self._theta * dv <= tol
+
+    def compliance(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Dense blocks of M̂⁻¹ on the contact dofs ``dofs`` (sorted, unique, all in this group):
+        (start (B + 1,), dofs (m,) global, values) in the layout of
+        :meth:`compute.contact.compliance.Compliance.build`."""
+        local = dofs - self.dof0
+        n = 2 * self.n_nodes
+        start = np.searchsorted(local, n * np.arange(self.B + 1)).astype(np.int64)
+        values = self.matrices.compliance(start, (local % n).astype(np.int64))
+        diag = _block_diagonals(start, values)
+        if not np.all(diag > 0.0):
+            b = int(np.searchsorted(start, np.flatnonzero(~(diag > 0.0))[0], side="right") - 1)
+            raise StepFailure(f"body {self.ids[b]}: effective matrix M + h^2 theta^2 K_t not positive definite on "
+                              f"its contact dofs (Newton iteration {self.iteration}, h = {self._h:.4g})")
+        return start, dofs, values
+
+    def recover(self, hr, v_free, v) -> None:
+        """v_b = v_free,b + M̂_b⁻¹ (H r)_b for every body with a contact impulse (in place in v)."""
+        rhs = hr[self.dofs].reshape(self.B, -1)
+        touched = np.any(rhs != 0.0, axis=1)
+        if touched.any():
+            dv = self.matrices.solve(rhs, touched)
+            vb = v[self.dofs].reshape(self.B, -1)
+            vb[touched] = v_free[self.dofs].reshape(self.B, -1)[touched] + dv[touched]
+
+    def area_change(self, v, lo: float, hi: float):
+        """None if every element keeps J / J_n within [lo, hi] at x_θ and x_new for velocities v;
+        else (body id, elements (k,), smallest ratio) of the first body that does not."""
+        x_theta, x_new = self.positions(v[self.dofs].reshape(self.B, -1))
+        for x in (x_theta,) if self._theta == 1.0 else (x_theta, x_new):
+            ratio = self.batch.jacobians(x) / self._j_n
+            bad = ~((ratio >= lo) & (ratio <= hi)).all(axis=2)
+            if bad.any():
+                b = int(np.flatnonzero(bad.any(axis=1))[0])
+                return int(self.ids[b]), np.flatnonzero(bad[b]), float(np.nanmin(ratio[b]))
+        return None
+
+    # --- measures ---------------------------------------------------------------------------
+    def centres(self, q) -> np.ndarray:
+        return self.batch.centroids(self.nodes(q))
+
+    def area(self, q) -> float:
+        return float(self.batch.areas(self.nodes(q)).sum())
+
+    def bounding_circles(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (B, 2) (mean of the boundary nodes) and radii (B,) of circles holding each
+        body's boundary loop."""
+        xb = self.nodes(q)[:, self.batch.boundary]
+        c = xb.mean(axis=1)
+        return np.ascontiguousarray(c), np.sqrt(np.max(np.sum((xb - c[:, None]) ** 2, axis=2), axis=1))
+
+    def kinetic_energy(self, v) -> float:
+        return self.batch.kinetic_energy(v[self.dofs].reshape(self.B, -1))
+
+    def meshes(self, q) -> dict:
+        """{body id: (points (n, 2), cells, element name)} in the current configuration."""
+        x = self.nodes(q)
+        return {int(i): (x[b].copy(), self.batch.cells, self.batch.element.name) for b, i in enumerate(self.ids)}
+
+    def frame_fields(self, q, v) -> tuple[dict, dict]:
+        """Point fields {name: (B, n, 3)} and cell fields {name: (B, n_elem, ...)}."""
+        x, w = self.nodes(q), self.nodes(v)
+        z = np.zeros((self.B, self.n_nodes, 1))
+        cauchy, pressure, mises = self.batch.element_stresses(x)
+        ne = self.batch.cells.shape[0]
+        point = {"displacement": np.concatenate([x - self.batch.X, z], axis=2), "velocity": np.concatenate([w, z], axis=2)}
+        cell = {"rotation": np.zeros((self.B, ne)), "angular_velocity": np.zeros((self.B, ne)),
+                "cauchy_stress": cauchy.reshape(self.B, ne, 9), "pressure": pressure, "von_mises": mises}
+        return point, cell
+
+    # --- diagnoses ---------------------------------------------------------------------------
+    def _inverted(self, b: int, x: np.ndarray, where: str) -> str:
+        els = np.flatnonzero(~(self.batch.jacobians(x[None])[0] > 0.0).all(axis=1))
+        return (f"body {int(self.ids[b])}: {els.size} inverted element(s) at {where} "
+                f"{els[:10].tolist()}{' ...' if els.size > 10 else ''} (Newton iteration {self.iteration}, "
+                f"h = {self._h:.4g})")
+
+
+def _block_diagonals(start: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Diagonal entries (m,) of the row-major blocks ``values`` of sizes diff(start)."""
+    sizes = np.diff(start)
+    offsets = np.concatenate([[0], np.cumsum(sizes**2)])
+    pos = np.arange(start[-1]) - np.repeat(start[:-1], sizes)
+    return values[np.repeat(offsets[:-1], sizes) + pos * (np.repeat(sizes, sizes) + 1)]

@@ -1,0 +1,177 @@
+r"""The Newton matrices M̂_b = M_b + h²θ² K_t,b of a group of soft bodies, factorised together.
+
+One symbolic LDLᵀ for the group's shared pattern (:class:`compute.fem.ldl.SymbolicLDL`), numeric
+factorisations, solves and compliance blocks for all bodies at once. Per body:
+
+- Reuse: a factorisation is kept while M̂ barely changes (largest entry change below
+  ``change_limit`` of the largest entry, same (h, θ)) unless the caller forces it (a kept
+  factorisation that contracted the Newton correction too slowly).
+- Positive definiteness: the Delassus operator needs a positive definite M̂, which a pressed
+  body loses at large h: its volumetric geometric stiffness U'(J) ∂²(area)/∂x² is indefinite
+  along a pressed boundary, and the moment of the compressive loads makes the rigid rotation
+  unstable; the contacts hold both. The number of negative pivots of LDLᵀ is the inertia of M̂
+  (Sylvester); when it is not zero the body falls back to level 1, M̂ without the volumetric
+  geometric stiffness G, then to levels 2.., M̂ - G + s h²θ² μ/(ρR²) M (s in ``SHIFTS``: a
+  mass-proportional stiffness), the first positive definite one being kept. A body starts at the
+  level its last factorisation ended with (same h, θ).
+- Compliance blocks C_b = E_bᵀ M̂_b⁻¹ E_b on the dofs contacts touch are recomputed only for bodies
+  whose factorisation or contact dofs changed.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from compute.errors import StepFailure
+from compute.fem.ldl import SymbolicLDL, block_offsets
+
+
+class IndefiniteMatrix(StepFailure):
+    """No stabilisation level makes M̂ positive definite for the bodies ``bodies`` (k,) (indices
+    in the group)."""
+
+    def __init__(self, bodies: np.ndarray, shift: float):
+        self.bodies = bodies
+        super().__init__("the Newton matrix M + h^2 theta^2 K_t is not positive definite, even without its "
+                         f"volumetric geometric part and with a mass-proportional stiffness {shift:g} mu/(rho R^2)")
+
+
+class NewtonMatrices:
+    """Factorised M̂ of the B bodies of a :class:`compute.fem.batch.BodyBatch`.
+
+    ``level`` (B,) the stabilisation level of each kept factorisation; ``factorizations`` and
+    ``stabilised`` count the numeric factorisations done (statistics)."""
+
+    SHIFTS = (0.1, 1.0, 10.0)  # levels 2, 3, 4
+
+    def __init__(self, batch):
+        self.batch = batch
+        self.symbolic = SymbolicLDL(batch.indptr, batch.indices)
+        B, n, nnz = batch.B, batch.n_dof, batch.indices.size
+        self.lx = np.zeros((B, self.symbolic.nnz_l))
+        self.d = np.zeros((B, n))
+        self.data = np.zeros((B, nnz))   # the unmodified M̂ values of each kept factorisation
+        self.scale = np.zeros(B)
+        self.valid = np.zeros(B, bool)
+        self.level = np.zeros(B, np.int64)
+        self.version = np.zeros(B, np.int64)  # bumped at every refactorisation of a body
+        self.key = None
+        radius2 = batch.reference_areas.sum(axis=1) / np.pi
+        m = batch.material
+        self._unit = m.mu / (m.density * radius2)  # μ / (ρ R²) (B,)
+        self._blocks = None  # (start, dofs, versions, values) of the last compliance blocks
+        self.factorizations = 0
+        self.stabilised = 0
+
+    def update(self, data, geometric, key, change_limit: float, force, active) -> np.ndarray:
+        """Factorise M̂ (values ``data`` (B, nnz)) of the active bodies whose kept factorisation
+        is not valid any more (see the module docstring). ``geometric(mask)`` returns (B, nnz)
+        values of h²θ² G for the bodies in ``mask`` (computed only if some body needs a
+        fallback). Returns the mask (B,) of refactorised bodies; raises IndefiniteMatrix for the
+        bodies for which no level is positive definite."""
+        same = key == self.key
+        need = active & ~self.valid
+        if same:
+            change = _max_abs_change(data, self.data, active)
+            need |= active & (force | (change > change_limit * self.scale))
+        else:
+            need = active.copy()
+        if not need.any():
+            return need
+        h, theta = key
+        start = np.where(same, self.level, 0)
+        pending = need.copy()
+        values = np.array(data)
+        g = None
+        for level in range(2 + len(self.SHIFTS)):
+            trying = pending & (start <= level)
+            if not trying.any():
+                continue
+            if level > 0:
+                g = geometric(pending) if g is None else g
+                values[trying] = data[trying] - g[trying]
+                if level > 1:
+                    shift = self.SHIFTS[level - 2] * (h * theta) ** 2 * self._unit
+                    values[trying] += shift[trying, None] * self.batch.mass_data[trying]
+            negative = self.symbolic.factorize(values, trying, self.lx, self.d)
+            self.factorizations += int(trying.sum())
+            done = trying & (negative == 0)
+            self.level[done] = level
+            if level > 0:
+                self.stabilised += int(done.sum())
+            pending &= ~done
+            if not pending.any():
+                break
+        if pending.any():
+            self.valid[pending] = False
+            raise IndefiniteMatrix(np.flatnonzero(pending), self.SHIFTS[-1])
+        self.data[need] = data[need]
+        self.scale[need] = np.abs(data[need]).max(axis=1)
+        self.valid[need] = True
+        self.version[need] += 1
+        self.key = key
+        return need
+
+    def solve(self, rhs: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """M̂_b⁻¹ rhs_b (B, n) for the active bodies (zeros elsewhere)."""
+        out = np.zeros_like(rhs)
+        self.symbolic.solve(self.lx, self.d, rhs, active, out)
+        return out
+
+    def compliance(self, start: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+        """Blocks C_b = E_bᵀ M̂_b⁻¹ E_b, row-major and concatenated (offsets ``block_offsets(start)``),
+        for the local dofs ``dofs[start[b]:start[b + 1]]`` of every body; blocks whose body kept
+        its factorisation and its dofs since the last call are copied, not recomputed."""
+        offsets = block_offsets(start)
+        values = np.zeros(offsets[-1])
+        recompute = np.diff(start) > 0
+        if self._blocks is not None:
+            old_start, old_dofs, old_version, old_values = self._blocks
+            kept = _same_segments(start, dofs, old_start, old_dofs) & (old_version == self.version) & recompute
+            _copy_blocks(kept, block_offsets(old_start), old_values, offsets, values)
+            recompute &= ~kept
+        if recompute.any():
+            self.symbolic.compliance(self.lx, self.d, start, dofs, recompute, values)
+        self._blocks = (start, dofs, self.version.copy(), values)
+        return values
+
+
+@numba.njit(cache=True)
+def _max_abs_change(a, b, active):
+    """max_j |a[i, j] - b[i, j]| (B,) over the active rows (0 elsewhere)."""
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[0]):
+        if active[i]:
+            m = 0.0
+            for j in range(a.shape[1]):
+                m = max(m, abs(a[i, j] - b[i, j]))
+            out[i] = m
+    return out
+
+
+@numba.njit(cache=True)
+def _same_segments(start, dofs, old_start, old_dofs):
+    """(B,) True where segment b of the ragged ``dofs`` equals segment b of ``old_dofs``."""
+    B = start.shape[0] - 1
+    out = np.zeros(B, np.bool_)
+    for b in range(B):
+        m = start[b + 1] - start[b]
+        if m != old_start[b + 1] - old_start[b]:
+            continue
+        same = True
+        for k in range(m):
+            if dofs[start[b] + k] != old_dofs[old_start[b] + k]:
+                same = False
+                break
+        out[b] = same
+    return out
+
+
+@numba.njit(cache=True)
+def _copy_blocks(kept, old_offsets, old_values, offsets, values):
+    for b in range(kept.shape[0]):
+        if kept[b]:
+            size = offsets[b + 1] - offsets[b]
+            for k in range(size):
+                values[offsets[b] + k] = old_values[old_offsets[b] + k]

@@ -1,0 +1,108 @@
+r"""One Moreau–Jean step: the sequence of a time step, visible in one place.
+
+With h the time step and θ ∈ [1/2, 1]:
+
+    M̂ (v⁺ - v_free) = H r                         (impulse balance)
+    q⁺ = q⁻ + h ((1 - θ) v⁻ + θ v⁺)                (θ-method on positions)
+    r from the contact solver: Signorini on g̃ + hθ u_n⁺, Coulomb on u_t⁺ (compute.contact.problem)
+
+1. detection (Verlet lists, rebuilt past the skin) and narrow phase at q_n: rows of H, gaps;
+2. every body group prepares the step (loads, x_n);
+3. rigid disks and walls only: one contact solve with the diagonal compliance; with soft bodies,
+   the Newton loop of :mod:`compute.stepping.newton`;
+4. positions, time, contact memory.
+
+With soft bodies a failing attempt is cut (:mod:`compute.stepping.control`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from compute.bodies import Load
+from compute.contact import detection
+from compute.contact.rows import Contacts
+from compute.errors import SimulationError, StepFailure
+from compute.solvers.nlgs import NLGS
+from compute.stepping import control
+from compute.stepping.newton import solve_step
+from compute.timing import TIMES
+
+
+@dataclass
+class StepReport:
+    sweeps: int
+    residual: float
+    n_contacts: int  # contacts carrying a positive normal impulse
+    max_penetration: float  # max(-gap) at the start of the step, >= 0
+    contacts: Contacts
+    newton_iterations: int = 1
+    factorizations: int = 0
+    cuts: int = 0
+    h: float = 0.0
+
+
+class Stepper:
+    """Advances a :class:`compute.state.State` of a :class:`compute.model.Model` by one step of the
+    scene's time step ``h`` (a constant; cut sub-steps pass their own h down as arguments)."""
+
+    MAX_CUTS = 4  # a step may be halved this many times before the run stops
+
+    def __init__(self, model, solver=None):
+        s = model.scene.solver
+        self.model = model
+        self.h, self.theta = s.time_step, s.theta
+        self.solver = solver or NLGS(s.nlgs_tolerance, s.nlgs_max_sweeps, s.relaxation)
+        self.newton_tolerance = s.newton_tolerance * model.diameter
+        self.newton_max_iterations = s.newton_max_iterations
+        self.gravity = tuple(model.scene.loading.gravity)
+        self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "stabilised_factorizations": 0,
+                      "cuts": 0, "nlgs_sweeps": 0, "backtracks": 0}
+
+    def step(self, state, pressure: float, wall_speed: float = 0.0) -> StepReport:
+        """Advance ``state`` in place. Pressure control (walls pushed by ``pressure`` × length) or,
+        under velocity control, walls moving inward at ``wall_speed``."""
+        load = Load(pressure, wall_speed, self.gravity)
+        if self.model.nonlinear:
+            rep = control.step_with_cuts(lambda st, h: self._attempt(st, load, h), state, self.h, self.MAX_CUTS,
+                                         self.stats)
+        else:
+            try:
+                rep = self._attempt(state, load, self.h)
+            except StepFailure as exc:
+                raise SimulationError(f"step {state.step + 1}: {exc}") from None
+        self.stats["steps"] += 1
+        return rep
+
+    def _attempt(self, state, load: Load, h: float) -> StepReport:
+        m, th = self.model, self.theta
+        with TIMES("detection"):
+            if detection.needs_detection(m, state):
+                detection.detect(m, state)
+            contacts = detection.narrow_phase(m, state, branches=False)
+        for g in m.groups:
+            g.begin_step(state.q, state.v, h, th, load)
+        before = np.array([(g.matrices.factorizations, g.matrices.stabilised) for g in m.soft]).reshape(-1, 2)
+        if m.nonlinear:
+            v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, self.newton_tolerance,
+                                               self.newton_max_iterations, self.stats)
+        else:  # linear groups: one contact solve is exact
+            v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, np.inf, 1, self.stats)
+        if not np.all(np.isfinite(v)):
+            raise StepFailure(f"non-finite velocities after the contact solve (NLGS residual {report.residual:.3g} "
+                              f"after {report.iterations} sweeps)")
+        after = np.array([(g.matrices.factorizations, g.matrices.stabilised) for g in m.soft]).reshape(-1, 2)
+        factorizations, stabilised = (after - before).sum(axis=0)
+        self.stats["newton_iterations"] += iterations
+        self.stats["factorizations"] += int(factorizations)
+        self.stats["stabilised_factorizations"] += int(stabilised)
+        state.q += h * ((1.0 - th) * state.v + th * v)
+        state.v = v
+        state.time += h
+        state.step += 1
+        detection.store_impulses(m, state, contacts.impulse)
+        return StepReport(report.iterations, report.residual, int(np.count_nonzero(contacts.impulse[:, 0] > 0.0)),
+                          float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0, contacts,
+                          newton_iterations=iterations, factorizations=int(factorizations), h=h)

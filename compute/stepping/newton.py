@@ -1,0 +1,138 @@
+r"""The Newton loop of a step with soft bodies (generalised Newton on the coupled problem, with
+the contact rows H fixed at q_n).
+
+Iterations k = 0, 1, ... from v⁰ = v_free of the linear groups and v⁻ of the soft bodies:
+
+    v_free = free velocity of every group at v^k          (soft: v^k - M̂⁻¹ R(v^k), batched)
+    W = Hᵀ M̂⁻¹ H on the contact dofs                       (1x1 and dense compliance blocks)
+    contact solve -> r, v on the contact dofs              (warm-started from the last iterate)
+    v^{k+1} = v_free + M̂⁻¹ H r                             (soft: interior recovery)
+
+until h θ |v^{k+1} - v^k|_∞ <= tol (a position correction). Devices that keep it robust:
+
+- Anderson acceleration (depth ``ANDERSON``) of the fixed-point map v -> v^{k+1}: with a kept or
+  a stabilised factorisation the iteration is a modified Newton, linearly convergent; mixing the
+  last iterates (Walker & Ni 2011) restores fast convergence. Convergence is judged on the plain
+  correction, never on an accelerated one.
+- Backtracking: an update that would change some element's area by more than a factor
+  1 / ``JACOBIAN_RATIO`` in one step is halved until it does not.
+- A correction that contracted by less than ``SLOW_CONTRACTION`` makes the bodies that kept an
+  old factorisation refactorise; bodies whose own correction is below tol are settled (not
+  reassembled nor refactorised in the next iterations of the step).
+
+Failures raise :class:`compute.errors.StepFailure` (the step control cuts the step).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from compute.contact.compliance import Compliance
+from compute.contact.problem import ContactProblem
+from compute.errors import StepFailure
+from compute.timing import TIMES
+
+ANDERSON = 4
+JACOBIAN_RATIO = 0.5
+MAX_BACKTRACKS = 12
+SLOW_CONTRACTION = 0.25
+
+
+def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: float, max_iterations: int,
+               stats: dict):
+    """End-of-step velocities (n_dofs,) and the last solve report, for the groups of ``model``
+    prepared for this step (``begin_step``). ``contacts`` holds the warm start and receives the
+    impulses."""
+    n = model.n_dofs
+    diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
+    soft_dofs = _contact_dofs(model, contacts)
+    v = np.zeros(n)
+    v_free = np.zeros(n)
+    for g in model.groups:
+        if not g.nonlinear:
+            g.free_velocity(v, v)
+        else:
+            v[g.dofs] = v_minus[g.dofs]
+    history: list = []
+    err_prev = np.inf
+    stamp = None  # the factorisations the compliance blocks were made with
+    for it in range(1, max_iterations + 1):
+        with TIMES("free velocity"):
+            for g in model.groups:
+                g.free_velocity(v, v_free)
+        if (new := [g.factorisation_stamp() for g, _ in soft_dofs]) != stamp:
+            with TIMES("compliance"):
+                dense = [g.compliance(d) for g, d in soft_dofs if len(d)]
+                comp = Compliance.build(n, diagonals, dense)
+                problem = ContactProblem.build(contacts, comp, v_free, v_minus, h, theta)
+            stamp = new
+        with TIMES("contact solve"):
+            report = solver.solve(problem)
+        stats["nlgs_sweeps"] += report.iterations
+        v_new = report.v
+        with TIMES("recovery"):
+            hr = problem.generalised_impulse(n)
+            for g, _ in soft_dofs:
+                g.recover(hr, v_free, v_new)
+        if not np.all(np.isfinite(v_new)):
+            raise StepFailure(f"non-finite velocities at Newton iteration {it}")
+        err = h * theta * float(np.max(np.abs(v_new - v))) if n else 0.0
+        if err <= tol:
+            v = _admissible(model, v, v_new, h, stats)
+            break
+        for g, _ in soft_dofs:
+            g.settle(v, v_new, tol)
+        if ANDERSON:
+            v_new = _anderson(history, v, v_new)
+        v = _admissible(model, v, v_new, h, stats)
+        if it > 1 and err > 1e6 * max(err_prev, tol):
+            raise StepFailure(f"Newton diverges (position correction {err:.3g} after {err_prev:.3g}, iteration {it})")
+        if err > SLOW_CONTRACTION * err_prev:
+            for g, _ in soft_dofs:
+                g.contraction_was_slow()
+        err_prev = err
+    else:
+        raise StepFailure(f"Newton did not converge in {max_iterations} iterations "
+                          f"(last position correction {err:.3g}, tolerance {tol:.3g})")
+    return v, report, it
+
+
+def _contact_dofs(model, contacts) -> list:
+    """[(soft group, sorted unique global dofs (m,) of the group that contact rows touch)]."""
+    d = np.unique(contacts.dof[contacts.dof >= model.node_dof0])
+    return [(g, d[(d >= g.dofs.start) & (d < g.dofs.stop)]) for g in model.soft]
+
+
+def _anderson(history: list, v: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Anderson acceleration of the fixed-point map v -> g = G(v) (depth ANDERSON)."""
+    history.append((v.copy(), g.copy()))
+    if len(history) > ANDERSON + 1:
+        history.pop(0)
+    if len(history) < 2:
+        return g
+    f = np.array([gi - vi for vi, gi in history])  # (m + 1, n) residuals
+    gs = np.array([gi for _, gi in history])
+    coef, *_ = np.linalg.lstsq(np.diff(f, axis=0).T, f[-1], rcond=1e-10)
+    out = g - np.diff(gs, axis=0).T @ coef
+    return out if np.all(np.isfinite(out)) else g
+
+
+def _admissible(model, v: np.ndarray, v_new: np.ndarray, h: float, stats: dict) -> np.ndarray:
+    """v + a (v_new - v) for the first a = 1, 1/2, 1/4, ... with which every element of every soft
+    body keeps J / J_n within [JACOBIAN_RATIO, 1 / JACOBIAN_RATIO] (a Newton step from a
+    linearised contact solution may overshoot a large load increment; no element really changes
+    its area that much in one step). Raises StepFailure if none is found."""
+    lo, hi = JACOBIAN_RATIO, 1.0 / JACOBIAN_RATIO
+    a = 1.0
+    with TIMES("backtracking check"):
+        for _ in range(MAX_BACKTRACKS):
+            trial = v + a * (v_new - v) if a < 1.0 else v_new
+            bad = next((b for b in (g.area_change(trial, lo, hi) for g in model.soft) if b is not None), None)
+            if bad is None:
+                stats["backtracks"] += a < 1.0
+                return trial
+            a *= 0.5
+    body, els, r = bad
+    raise StepFailure(f"body {body}: {els.size} element(s) {els[:10].tolist()} would change their area by more "
+                      f"than a factor {hi:g} in one step (J/J_n down to {r:.3g}) even after {MAX_BACKTRACKS} "
+                      f"backtracking halvings of the Newton update (h = {h:.4g})")
