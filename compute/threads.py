@@ -16,8 +16,10 @@ def configure(threads: int | None = None) -> int:
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")
     import numba
 
-    n = threads or numba.config.NUMBA_NUM_THREADS
-    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS} (the cores numba may use), got {n}")
-    numba.set_num_threads(n)
-    return n
+    if threads is None:
+        return numba.config.NUMBA_NUM_THREADS
+    if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS} (the cores numba may use), "
+                         f"got {threads}")
+    numba.set_num_threads(threads)
+    return threads

@@ -52,6 +52,7 @@ class SoftBodies:
         self.loop_nodes = (node0 + self.n_nodes * np.arange(self.B)[:, None] + self.batch.boundary).ravel()
         self.loop_start = nb * np.arange(self.B + 1)
         self._gravity = None
+        self._v_free = None
 
     def __len__(self) -> int:
         return self.B
@@ -74,7 +75,10 @@ class SoftBodies:
         self._x_n = self.nodes(q).copy()
         self._v_n = v[self.dofs].reshape(self.B, -1).copy()
         self._j_n = self.batch.jacobians(self._x_n)
-        self._v_free = np.zeros_like(self._v_n)
+        if self._v_free is None:
+            self._v_free = np.zeros_like(self._v_n)
+            self._f = np.zeros_like(self._v_n)  # work arrays of the Newton iterations
+            self._k = np.zeros_like(self.batch.mass_data)
         self._settled = np.zeros(self.B, bool)
         self._force = np.zeros(self.B, bool)
         self._stale = np.zeros(self.B, bool)
@@ -87,17 +91,23 @@ class SoftBodies:
         return self._x_n + th * dx, self._x_n + dx
 
     def free_velocity(self, v, out) -> None:
-        """v_free = v - M̂⁻¹ R(v) of every unsettled body (module docstring), written to ``out``."""
+        """v_free = v - M̂⁻¹ R(v) of every unsettled body (module docstring), written to ``out``.
+
+        The tangent (and so the check whether a kept factorisation is still close to M̂) is
+        evaluated at the first iteration of a step, and later only for the bodies that must
+        refactorise (no valid factorisation, or forced after a slow contraction); the other
+        iterations need the internal force only."""
         self.iteration += 1
         h, th, batch = self._h, self._theta, self.batch
         vb = v[self.dofs].reshape(self.B, -1)
         active = ~self._settled
         if active.any():
             x_theta, _ = self.positions(vb)
-            f = np.zeros_like(vb)
-            k = np.zeros_like(batch.mass_data)
+            f, k = self._f, self._k
+            tangent = active & (self._force | ~self.matrices.valid) if self.iteration > 1 else active
             with TIMES("assembly"):
-                ok = batch.internal_force_and_tangent(x_theta, active, f, k)
+                ok = batch.internal_force_and_tangent(x_theta, tangent, f, k)
+                ok &= batch.internal_force(x_theta, active & ~tangent, f)
             if not ok.all():
                 b = int(np.flatnonzero(~ok)[0])
                 raise StepFailure(self._inverted(b, x_theta[b], "x_theta"))
@@ -105,7 +115,7 @@ class SoftBodies:
             if not np.isfinite(residual[active]).all():
                 b = int(np.flatnonzero(active & ~np.isfinite(residual).all(axis=1))[0])
                 raise StepFailure(f"body {self.ids[b]}: non-finite internal forces (Newton iteration {self.iteration})")
-            data = batch.mass_data + (h * th) ** 2 * k
+            batch.effective_matrix(k, (h * th) ** 2, tangent)  # k <- M + h²θ² K_t on those rows
 
             def geometric(mask, x_theta=x_theta):
                 g = np.zeros_like(batch.mass_data)
@@ -114,9 +124,13 @@ class SoftBodies:
 
             try:
                 with TIMES("factorisation"):
-                    refactored = self.matrices.update(data, geometric, (h, th), self.REFACTOR_CHANGE, self._force, active)
+                    refactored = self.matrices.update(k, geometric, (h, th), self.REFACTOR_CHANGE, self._force, tangent)
             except IndefiniteMatrix as exc:
-                raise StepFailure(f"body {', '.join(str(i) for i in self.ids[exc.bodies][:10])}: {exc} "
+                b = int(exc.bodies[0])
+                ratio = (batch.jacobians(x_theta)[b] / self._j_n[b]).min(axis=1)
+                worst = np.argsort(ratio)[:5]
+                raise StepFailure(f"body {', '.join(str(i) for i in self.ids[exc.bodies][:10])}: {exc}; its most "
+                                  f"compressed elements {worst.tolist()} (J/J_n down to {ratio[worst[0]]:.3g}) "
                                   f"(Newton iteration {self.iteration}, h = {h:.4g})") from None
             self._stale = active & ~refactored
             self._force[:] = False
@@ -168,11 +182,13 @@ class SoftBodies:
         else (body id, elements (k,), smallest ratio) of the first body that does not."""
         x_theta, x_new = self.positions(v[self.dofs].reshape(self.B, -1))
         for x in (x_theta,) if self._theta == 1.0 else (x_theta, x_new):
-            ratio = self.batch.jacobians(x) / self._j_n
-            bad = ~((ratio >= lo) & (ratio <= hi)).all(axis=2)
+            span = self.batch.jacobian_ratio_range(x, self._j_n)
+            bad = ~((span[:, 0] >= lo) & (span[:, 1] <= hi))
             if bad.any():
-                b = int(np.flatnonzero(bad.any(axis=1))[0])
-                return int(self.ids[b]), np.flatnonzero(bad[b]), float(np.nanmin(ratio[b]))
+                b = int(np.flatnonzero(bad)[0])
+                ratio = self.batch.jacobians(x)[b] / self._j_n[b]
+                els = np.flatnonzero(~((ratio >= lo) & (ratio <= hi)).all(axis=1))
+                return int(self.ids[b]), els, float(np.nanmin(ratio))
         return None
 
     # --- measures ---------------------------------------------------------------------------

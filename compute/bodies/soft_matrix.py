@@ -82,14 +82,16 @@ class NewtonMatrices:
         h, theta = key
         start = np.where(same, self.level, 0)
         pending = need.copy()
-        values = np.array(data)
+        values = data  # level 0; a modified copy for the fallback levels
         g = None
         for level in range(2 + len(self.SHIFTS)):
             trying = pending & (start <= level)
             if not trying.any():
                 continue
             if level > 0:
-                g = geometric(pending) if g is None else g
+                if g is None:
+                    g = geometric(pending)
+                    values = data.copy()
                 values[trying] = data[trying] - g[trying]
                 if level > 1:
                     shift = self.SHIFTS[level - 2] * (h * theta) ** 2 * self._unit

@@ -135,6 +135,39 @@ def _batch_csr_matvec(
             out[b, i] = s
 
 
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _batch_jacobian_ratio_range(x, cells, dndX, j_ref, out):
+    """out[b] <- (min, max) over elements and points of det F(x[b]) / j_ref[b] (no temporaries)."""
+    n_elem, n_q, n_en = dndX.shape[1], dndX.shape[2], dndX.shape[3]
+    for b in numba.prange(x.shape[0]):
+        lo, hi = np.inf, -np.inf
+        for e in range(n_elem):
+            for q in range(n_q):
+                f00 = f01 = f10 = f11 = 0.0
+                for a in range(n_en):
+                    xa, ya = x[b, cells[e, a], 0], x[b, cells[e, a], 1]
+                    gx, gy = dndX[b, e, q, a, 0], dndX[b, e, q, a, 1]
+                    f00 += xa * gx
+                    f01 += xa * gy
+                    f10 += ya * gx
+                    f11 += ya * gy
+                r = (f00 * f11 - f01 * f10) / j_ref[b, e, q]
+                if not (r >= lo):  # also catches NaN
+                    lo = r
+                if not (r <= hi):
+                    hi = r
+        out[b, 0], out[b, 1] = lo, hi
+
+
+@numba.njit(cache=True, parallel=True)
+def _batch_axpy(m: np.ndarray, c: float, k: np.ndarray, active: np.ndarray) -> None:
+    """k[b] <- m[b] + c k[b] for the active rows b of (B, nnz) arrays."""
+    for b in numba.prange(k.shape[0]):
+        if active[b]:
+            for i in range(k.shape[1]):
+                k[b, i] = m[b, i] + c * k[b, i]
+
+
 # ------------------------------------------------------------------------ one-time set-up
 
 
@@ -300,6 +333,12 @@ class BodyBatch:
             self.material.kappa, self._mean_dilatation, self.kmap, out,
         )
 
+    def effective_matrix(self, kdata: np.ndarray, c: float, active: np.ndarray) -> None:
+        """kdata[b] <- M_b + c kdata[b] (the θ-scheme's M̂ = M + h²θ² K_t for c = h²θ²), in
+        place, for the active bodies; kdata (B, nnz)."""
+        self._output(kdata, (self.B, self.indices.size), "kdata")
+        _batch_axpy(self.mass_data, c, kdata, self._active(active))
+
     def mass_times(self, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """M_b v_b for v (B, 2n) -> (B, 2n) (batched CSR mat-vec on the shared pattern), written
         to ``out`` (B, 2n) if given (must not be v)."""
@@ -323,6 +362,17 @@ class BodyBatch:
         J = np.empty(self._wdV.shape)
         _batch_jacobians(x, self.cells, self._dndX, J)
         return J
+
+    def jacobian_ratio_range(self, x: np.ndarray, j_ref: np.ndarray) -> np.ndarray:
+        """Smallest and largest J(x) / j_ref over the stiffness points of every body, (B, 2);
+        x (B, n_nodes, 2), j_ref (B, n_elem, n_q) (e.g. ``jacobians`` of the step's start).
+        NaN where some J is NaN."""
+        x = self._positions(x)
+        if j_ref.shape != self._wdV.shape:
+            raise ValueError(f"j_ref must have shape {self._wdV.shape}, got {j_ref.shape}")
+        out = np.empty((self.B, 2))
+        _batch_jacobian_ratio_range(x, self.cells, self._dndX, np.ascontiguousarray(j_ref), out)
+        return out
 
     def areas(self, x: np.ndarray) -> np.ndarray:
         """Current areas (B,) of the bodies (exact, curved T6 included, as FEBody.area)."""
