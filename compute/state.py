@@ -1,7 +1,7 @@
-"""The mechanical state of a run and the dof layout of its bodies.
+"""The mechanical state of a run: what a step reads and writes, and what a checkpoint saves.
 
-Generalised coordinates q and velocities v (n_dofs,) are laid out as
-``[rigid disk k: x, y, rotation]*nr + [wall 0..3 position] + [deformable nodes: x, y]*nn``.
+Generalised coordinates q and velocities v (n_dofs,) are laid out group after group
+(compute.model): ``[rigid disk k: x, y, rotation]*nr + [wall 0..3 position] + [soft nodes: x, y]*nn``.
 """
 
 from __future__ import annotations
@@ -9,31 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Where each body's dofs live in q and v."""
-
-    n_rigid: int
-    node_offsets: tuple[int, ...] = ()  # first dof of each deformable body's nodes
-    node_counts: tuple[int, ...] = ()
-
-    @property
-    def wall_dof0(self) -> int:
-        return 3 * self.n_rigid
-
-    @property
-    def n_dofs(self) -> int:
-        return 3 * self.n_rigid + 4 + 2 * sum(self.node_counts)
-
-    def rigid_dof0(self) -> np.ndarray:
-        return 3 * np.arange(self.n_rigid, dtype=np.int64)
-
-    def body_dofs(self, k: int) -> slice:
-        """Dofs of deformable body k (its nodes' x, y interleaved)."""
-        o = self.node_offsets[k]
-        return slice(o, o + 2 * self.node_counts[k])
 
 
 @dataclass

@@ -5,8 +5,9 @@ Every group answers the same questions, so that the stepper never asks what kind
 - ``begin_step(q, v, h, theta, load)``: what stays fixed during a step (loads, x_n);
 - ``free_velocity(v, out)``: its part of the free velocity at the Newton iterate ``v`` (linear
   groups ignore ``v``: their free velocity is exact after one contact solve);
-- ``compliance(contact_dofs)``: its part of M̂⁻¹ on the dofs that contacts touch, as 1x1 values
-  (rigid disks, walls) or dense blocks (soft bodies), see :mod:`compute.contact.compliance`;
+- its part of M̂⁻¹ on the dofs that contacts touch (:mod:`compute.contact.compliance`):
+  ``diagonal()``, 1x1 values on all its dofs (linear groups: rigid disks, walls), or
+  ``compliance(contact_dofs)``, dense blocks per body (soft bodies);
 - ``recover(hr, v_free, v)``: interior velocities after the contact solve (soft bodies);
 - ``area(q)``, ``centres(q)``, ``kinetic_energy(v)``, ``frame_fields(q, v)``: measures and output.
 

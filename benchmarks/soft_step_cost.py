@@ -1,0 +1,237 @@
+"""Cost of a step with soft bodies: time per step and per Newton iteration, split by phase,
+against the number of soft bodies; and the 144-disk mixture side by side with another commit.
+
+``scaling``: for each N and element type, a κ = 1, μ = 0.2 mixture (every disk soft, 92-element
+T3 or T6 meshes, the mixture study's quasi-static settings) is prepared from a jammed rigid
+packing (pre.jamming, pre.mixture), then one process per case reads it, runs ``--warmup``
+untimed steps at P/E = 0.01 (compilation, first detection, the first large motions), and times
+the next ``--steps`` steps. Phases (compute.timing): detection (Verlet check, candidates, narrow
+phase), assembly (internal forces and tangents), factorisation, solves (Newton right-hand
+sides), compliance (blocks on contact dofs, Delassus blocks), contact solve (NLGS), recovery
+(interior velocities), backtracking check; "other" is the rest of the step. Also reported: Newton
+iterations, factorisations, NLGS sweeps per step, peak resident memory, and the bytes of the
+soft groups' arrays per soft body. The exponent of per-step cost against the number of soft
+bodies is fitted over N >= 144.
+
+``compare``: ``python -m compute`` on the 144-disk κ = 0.5, μ = 0.2, T3 × 92 scene (stages P/E =
+0.01, 0.03, 0.1; the issue's scene) from this checkout and from a git worktree of ``--before``,
+alternately, ``--repeats`` times each; wall time of the whole command (interpreter start,
+imports, numba's cached kernels, all stages); φ of each equilibrated stage of both.
+
+Threads: each case runs with ``--threads`` numba threads (default 1) so that timings do not
+depend on what else runs on the machine.
+
+    python benchmarks/soft_step_cost.py scaling --n 30 144 500 1500 --elements T3 T6 --workdir W
+    python benchmarks/soft_step_cost.py compare --before REV --workdir W [--repeats 3]
+
+Writes benchmarks/results/soft_step_cost_{scaling,compare}.{md,json}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).resolve().parent / "results"
+PHASES = ("detection", "assembly", "factorisation", "solves", "compliance", "contact solve", "recovery",
+          "backtracking check")
+
+
+def prepare(workdir: Path, n: int, kappa: float, mu: float, element: str, pressures, seed: int = 1) -> Path:
+    """A mixture scene (jammed rigid packing, a fraction kappa made soft) in workdir; reused if there."""
+    from compute.scene import read_scene
+    from pre.jamming import jammed_rigid_scene
+    from pre.mixture import compaction_parameters, mixture_scene
+
+    folder = workdir / f"n{n}_k{kappa:g}_mu{mu:g}_{element}" / "scene"
+    if (folder / "scene.toml").is_file():
+        return folder
+    rigid = workdir / f"rigid_n{n}_mu{mu:g}_s{seed}" / "scene"
+    if not (rigid / "scene.toml").is_file():
+        rigid = jammed_rigid_scene(rigid.parent, n, mu, seed, [1.0], overrides={"solver.time_step": 0.1},
+                                   log=lambda msg: None)
+    params = compaction_parameters(read_scene(rigid).walls.bounds, mu, pressures)
+    mixture_scene(rigid, folder, kappa, mu, np.random.default_rng(seed), element=element, n_elements=92,
+                  parameters=params)
+    return folder
+
+
+def measure_one(scene: Path, warmup: int, steps: int) -> dict:
+    """Time ``steps`` steps after ``warmup`` (this process); phases from compute.timing."""
+    import resource
+
+    from compute.model import Model
+    from compute.scene import read_scene
+    from compute.stepping.moreau_jean import Stepper
+    from compute.timing import TIMES
+
+    model = Model(read_scene(scene))
+    stepper = Stepper(model)
+    state = model.initial_state()
+    pressure = model.scene.loading.pressures[0]
+    for _ in range(warmup):
+        stepper.step(state, pressure)
+    seconds0, stats0 = dict(TIMES.seconds), dict(stepper.stats)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        stepper.step(state, pressure)
+    wall = time.perf_counter() - t0
+    phases = {p: TIMES.seconds.get(p, 0.0) - seconds0.get(p, 0.0) for p in PHASES}
+    stats = {k: stepper.stats[k] - stats0.get(k, 0) for k in stepper.stats}
+    soft_bytes = sum(_nbytes(g.batch) + _nbytes(g.matrices) for g in model.soft)
+    n_soft = sum(g.B for g in model.soft)
+    return {"scene": str(scene), "n_soft": n_soft, "n_bodies": int(model.scene.n_bodies), "steps": steps,
+            "wall": wall, "phases": phases, "stats": stats,
+            "bytes_per_soft_body": soft_bytes / max(n_soft, 1),
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def _nbytes(obj) -> int:
+    """Bytes of the numpy arrays held (one level deep) by ``obj``."""
+    total = 0
+    for value in vars(obj).values():
+        if isinstance(value, np.ndarray):
+            total += value.nbytes
+        elif hasattr(value, "__dict__") and not isinstance(value, type):
+            total += sum(v.nbytes for v in vars(value).values() if isinstance(v, np.ndarray))
+    return total
+
+
+def _child_env(threads: int) -> dict:
+    env = dict(os.environ)
+    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[var] = str(threads)
+    return env
+
+
+def scaling(args) -> None:
+    rows = []
+    for element in args.elements:
+        for n in args.n:
+            scene = prepare(args.workdir, n, 1.0, 0.2, element, [0.01])
+            out = subprocess.run([sys.executable, __file__, "_one", str(scene), str(args.warmup), str(args.steps)],
+                                 env=_child_env(args.threads), capture_output=True, text=True, check=True)
+            row = json.loads(out.stdout.strip().splitlines()[-1])
+            row["element"], row["n"] = element, n
+            rows.append(row)
+            print(f"{element} N = {n}: {row['wall'] / row['steps'] * 1e3:.1f} ms per step", flush=True)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "soft_step_cost_scaling.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (RESULTS / "soft_step_cost_scaling.md").write_text(scaling_table(rows, args))
+
+
+def scaling_table(rows: list[dict], args) -> str:
+    lines = ["# Cost of a step with soft bodies against their number (κ = 1, μ = 0.2, P/E = 0.01)", "",
+             f"`python benchmarks/soft_step_cost.py scaling --n {' '.join(map(str, args.n))} --elements "
+             f"{' '.join(args.elements)} --warmup {args.warmup} --steps {args.steps} --threads {args.threads}`", "",
+             "Milliseconds per step (per Newton iteration in brackets) by phase, after the warm-up steps.", "",
+             "| element | N soft | ms/step | Newton it./step | " + " | ".join(PHASES)
+             + " | other | sweeps/step | fact./step | KiB/soft body | peak RSS (MB) |",
+             "|---|---|---|---|" + "---|" * len(PHASES) + "---|---|---|---|---|"]
+    for r in rows:
+        s, it = r["steps"], max(r["stats"]["newton_iterations"], 1)
+        ph = r["phases"]
+        other = r["wall"] - sum(ph.values())
+        cells = [f"{1e3 * ph[p] / s:.2f} ({1e3 * ph[p] / it:.2f})" for p in PHASES]
+        lines.append(f"| {r['element']} | {r['n_soft']} | {1e3 * r['wall'] / s:.1f} | {it / s:.1f} | "
+                     + " | ".join(cells) + f" | {1e3 * other / s:.2f} | {r['stats']['nlgs_sweeps'] / s:.0f} | "
+                     f"{r['stats']['factorizations'] / s:.0f} | {r['bytes_per_soft_body'] / 1024:.0f} | "
+                     f"{r['peak_rss_mb']:.0f} |")
+    lines += ["", "Fitted exponent of the cost against the number of soft bodies (N soft >= 144):", ""]
+    for element in sorted({r["element"] for r in rows}):
+        sel = [r for r in rows if r["element"] == element and r["n_soft"] >= 144]
+        if len(sel) >= 2:
+            x = np.log([r["n_soft"] for r in sel])
+            per_step = np.polyfit(x, np.log([r["wall"] / r["steps"] for r in sel]), 1)[0]
+            per_it = np.polyfit(x, np.log([r["wall"] / max(r["stats"]["newton_iterations"], 1) for r in sel]), 1)[0]
+            lines.append(f"- {element}: per step {per_step:.2f}, per Newton iteration {per_it:.2f}")
+    return "\n".join(lines) + "\n"
+
+
+def compare(args) -> None:
+    before = Path(args.workdir) / f"worktree_{args.before[:10]}"
+    if not before.is_dir():
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(before), args.before], check=True)
+    scene = prepare(args.workdir, 144, 0.5, 0.2, "T3", [0.01, 0.03, 0.1])
+    times: dict[str, list[float]] = {"before": [], "after": []}
+    phis = {}
+    for rep in range(args.repeats + 1):  # the first round is an untimed warm-up (numba caches)
+        for label, tree in (("before", before), ("after", ROOT)):
+            out = Path(args.workdir) / f"compare_{label}"
+            env = _child_env(args.threads)
+            env["PYTHONPATH"] = str(tree)
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "compute", str(scene), "--out", str(out)], cwd=tree, env=env,
+                           check=True, capture_output=True)
+            if rep:
+                times[label].append(time.perf_counter() - t0)
+            phis[label] = _stage_phis(out)
+    ratio = np.array(times["before"]) / np.array(times["after"])
+    result = {"before": args.before, "scene": str(scene), "threads": args.threads, "times": times,
+              "ratio": ratio.tolist(), "phi": phis}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "soft_step_cost_compare.json").write_text(json.dumps(result, indent=1) + "\n")
+    lines = ["# 144-disk mixture (κ = 0.5, μ = 0.2, T3 × 92, P/E = 0.01, 0.03, 0.1): before and after", "",
+             f"`python benchmarks/soft_step_cost.py compare --before {args.before} --repeats {args.repeats} "
+             f"--threads {args.threads}`: `python -m compute` wall time, the two timed alternately after an "
+             "untimed round.", "",
+             "| | runs (s) | median (s) |", "|---|---|---|"]
+    for label in ("before", "after"):
+        lines.append(f"| {label} | {', '.join(f'{t:.1f}' for t in times[label])} | {np.median(times[label]):.1f} |")
+    lines += ["", f"Speed-up (before / after, per pair): {', '.join(f'{r:.1f}' for r in ratio)}; "
+              f"median {np.median(ratio):.1f}.", "", "| stage | φ before | φ after | difference |", "|---|---|---|---|"]
+    for k, (a, b) in enumerate(zip(phis["before"], phis["after"])):
+        lines.append(f"| {k} | {a:.6f} | {b:.6f} | {b - a:+.2e} |")
+    (RESULTS / "soft_step_cost_compare.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def _stage_phis(out: Path) -> list[float]:
+    """φ of the equilibrated stages, from the last history row of each stage."""
+    import csv
+
+    rows = list(csv.DictReader(open(out / "history.csv")))
+    last = {}
+    for r in rows:
+        last[int(r["stage"])] = float(r["phi"])
+    return [last[k] for k in sorted(last)]
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("scaling")
+    s.add_argument("--n", type=int, nargs="+", default=[30, 144, 500, 1500])
+    s.add_argument("--elements", nargs="+", default=["T3", "T6"], choices=("T3", "T6"))
+    s.add_argument("--warmup", type=int, default=10)
+    s.add_argument("--steps", type=int, default=20)
+    s.add_argument("--threads", type=int, default=1)
+    s.add_argument("--workdir", type=Path, required=True)
+    c = sub.add_parser("compare")
+    c.add_argument("--before", required=True, help="git revision of the implementation to compare against")
+    c.add_argument("--repeats", type=int, default=3)
+    c.add_argument("--threads", type=int, default=1)
+    c.add_argument("--workdir", type=Path, required=True)
+    one = sub.add_parser("_one")
+    one.add_argument("scene", type=Path)
+    one.add_argument("warmup", type=int)
+    one.add_argument("steps", type=int)
+    a = p.parse_args(argv)
+    if a.command == "_one":
+        print(json.dumps(measure_one(a.scene, a.warmup, a.steps)))
+    elif a.command == "scaling":
+        scaling(a)
+    else:
+        compare(a)
+
+
+if __name__ == "__main__":
+    main()

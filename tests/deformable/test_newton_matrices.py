@@ -1,0 +1,122 @@
+"""The batched Newton matrices of a soft group (compute.bodies.soft_matrix) against dense numpy:
+the stabilisation level each body ends at, the solves, the reuse rule and the cached
+compliance blocks."""
+
+import numpy as np
+import pytest
+
+from compute.bodies.soft_matrix import IndefiniteMatrix, NewtonMatrices
+from compute.fem import NeoHookean
+from compute.fem.batch import BodyBatch
+from pre.mesh import reference_disk_mesh
+
+MATERIAL = NeoHookean(1.0, 0.495, 1.0)
+
+
+def dense(batch, data):
+    """(B, n, n) dense matrices of values (B, nnz) in the batch's pattern."""
+    n = batch.n_dof
+    out = np.zeros((len(data), n, n))
+    rows = np.repeat(np.arange(n), np.diff(batch.indptr))
+    out[:, rows, batch.indices] = data
+    return out
+
+
+@pytest.fixture(scope="module")
+def pressed():
+    """Four T6 disks squeezed by different amounts, and their M-hat at a large h."""
+    m = reference_disk_mesh(92, "T6")
+    X = np.stack([np.asarray(m.points)[:, :2] * r for r in (0.5, 0.6, 0.45, 0.55)])
+    batch = BodyBatch(X, np.asarray(m.cells), "T6", MATERIAL, "mean_dilatation")
+    squeeze = np.array([1.0, 0.97, 0.9, 0.8])[:, None, None]
+    x = X * np.concatenate([np.ones_like(squeeze), squeeze], axis=2)
+    f, k = np.zeros((4, batch.n_dof)), np.zeros((4, batch.indices.size))
+    assert batch.internal_force_and_tangent(x, np.ones(4, bool), f, k).all()
+    h, theta = 5.0, 1.0
+    data = batch.mass_data + (h * theta) ** 2 * k
+    g = np.zeros_like(k)
+    batch.volumetric_geometric(x, np.ones(4, bool), g)
+    return batch, data, (h * theta) ** 2 * g, (h, theta)
+
+
+def expected_level(batch, data, g, key, shifts):
+    """The first level (module docstring of soft_matrix) whose dense matrix is positive definite."""
+    h, theta = key
+    unit = MATERIAL.mu / (MATERIAL.density * batch.reference_areas.sum(axis=1) / np.pi)
+    levels = []
+    for b in range(batch.B):
+        candidates = [data[b], data[b] - g[b]] + [data[b] - g[b] + s * (h * theta) ** 2 * unit[b] * batch.mass_data[b]
+                                                  for s in shifts]
+        eig = [np.linalg.eigvalsh(dense(batch, c[None])[0]).min() for c in candidates]
+        levels.append(next((i for i, e in enumerate(eig) if e > 0.0), None))
+    return levels
+
+
+def test_levels_solves_and_blocks_match_dense(pressed):
+    batch, data, g, key = pressed
+    nm = NewtonMatrices(batch)
+    every = np.ones(batch.B, bool)
+    refactored = nm.update(data, lambda mask: g, key, 0.05, np.zeros(batch.B, bool), every)
+    assert refactored.all()
+    levels = expected_level(batch, data, g, key, nm.SHIFTS)
+    assert nm.level.tolist() == levels
+    assert levels[0] == 0 and max(levels) >= 1  # the fixture covers both cases
+    # the factorised matrices are those of the chosen levels: solves against dense ones
+    h, theta = key
+    unit = MATERIAL.mu / (MATERIAL.density * batch.reference_areas.sum(axis=1) / np.pi)
+    mats = []
+    for b, lev in enumerate(levels):
+        m = data[b] - (g[b] if lev >= 1 else 0.0)
+        if lev >= 2:
+            m = m + nm.SHIFTS[lev - 2] * (h * theta) ** 2 * unit[b] * batch.mass_data[b]
+        mats.append(dense(batch, m[None])[0])
+    rhs = np.random.default_rng(1).normal(size=(batch.B, batch.n_dof))
+    x = nm.solve(rhs, every)
+    for b in range(batch.B):
+        np.testing.assert_allclose(mats[b] @ x[b], rhs[b], atol=1e-9 * np.abs(rhs[b]).max())
+    # compliance blocks on ragged dof sets, then again with one body's set changed
+    dofs = [np.array([0, 1, 7, 40]), np.array([3]), np.array([], int), np.array([5, 6, 100, 101, 300])]
+    start = np.concatenate([[0], np.cumsum([len(d) for d in dofs])])
+    values = nm.compliance(start, np.concatenate(dofs))
+    offsets = np.concatenate([[0], np.cumsum([len(d) ** 2 for d in dofs])])
+    for b, d in enumerate(dofs):
+        block = values[offsets[b]:offsets[b + 1]].reshape(len(d), len(d))
+        expected = np.linalg.inv(mats[b])[np.ix_(d, d)]
+        np.testing.assert_allclose(block, expected, rtol=1e-8, atol=1e-9 * np.abs(expected).max(initial=0.0))
+    dofs[1] = np.array([2, 3, 9])
+    start = np.concatenate([[0], np.cumsum([len(d) for d in dofs])])
+    values = nm.compliance(start, np.concatenate(dofs))
+    offsets = np.concatenate([[0], np.cumsum([len(d) ** 2 for d in dofs])])
+    for b, d in enumerate(dofs):
+        block = values[offsets[b]:offsets[b + 1]].reshape(len(d), len(d))
+        expected = np.linalg.inv(mats[b])[np.ix_(d, d)]
+        np.testing.assert_allclose(block, expected, rtol=1e-8, atol=1e-9 * np.abs(expected).max(initial=0.0))
+
+
+def test_reuse_rule(pressed):
+    """A kept factorisation survives a small change (below the limit, same h), not a larger one,
+    nor a new h, nor a forced refactorisation."""
+    batch, data, g, key = pressed
+    nm = NewtonMatrices(batch)
+    every, none = np.ones(batch.B, bool), np.zeros(batch.B, bool)
+    nm.update(data, lambda mask: g, key, 0.05, none, every)
+    scale = np.abs(data).max(axis=1)
+    small = data.copy()
+    small[:, 0] += 0.01 * scale
+    assert not nm.update(small, lambda mask: g, key, 0.05, none, every).any()
+    large = data.copy()
+    large[2, 0] += 0.2 * scale[2]
+    assert nm.update(large, lambda mask: g, key, 0.05, none, every).tolist() == [False, False, True, False]
+    forced = np.array([True, False, False, False])
+    assert nm.update(large, lambda mask: g, key, 0.05, forced, every).tolist() == [True, False, False, False]
+    assert nm.update(large, lambda mask: g, (key[0] / 2, key[1]), 0.05, none, every).all()
+
+
+def test_no_positive_definite_level_names_the_bodies(pressed):
+    batch, data, g, key = pressed
+    nm = NewtonMatrices(batch)
+    bad = data.copy()
+    bad[1] *= -1.0  # negative definite: no level helps
+    with pytest.raises(IndefiniteMatrix) as err:
+        nm.update(bad, lambda mask: g, key, 0.05, np.zeros(batch.B, bool), np.ones(batch.B, bool))
+    assert err.value.bodies.tolist() == [1]
