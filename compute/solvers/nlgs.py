@@ -114,11 +114,19 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
 
 @numba.njit(cache=True)
 def apply_impulses(dof, hn, ht, r, v, diagonal, block, pos, start, dofs, offset, values):
-    """v += M̂⁻¹ H r (used for the warm start)."""
+    """v += M̂⁻¹ H r (the warm start): H r gathered per dof first, so that each dof's column of a
+    dense block is added once, and contacts without impulse cost nothing."""
     nc, m = dof.shape
+    hr = np.zeros(v.shape[0])
+    touched = np.zeros(v.shape[0], np.bool_)
     for c in range(nc):
+        if r[c, 0] == 0.0 and r[c, 1] == 0.0:
+            continue
         for k in range(m):
             d = dof[c, k]
             if d >= 0:
-                add_compliance(v, d, hn[c, k] * r[c, 0] + ht[c, k] * r[c, 1], diagonal, block, pos, start, dofs,
-                               offset, values)
+                hr[d] += hn[c, k] * r[c, 0] + ht[c, k] * r[c, 1]
+                touched[d] = True
+    for d in range(v.shape[0]):
+        if touched[d] and hr[d] != 0.0:
+            add_compliance(v, d, hr[d], diagonal, block, pos, start, dofs, offset, values)
