@@ -14,7 +14,8 @@ soft groups' arrays per soft body. The exponent of per-step cost against the num
 bodies is fitted over N >= 144.
 
 ``compare``: ``python -m compute`` on the 144-disk κ = 0.5, μ = 0.2, T3 × 92 scene (stages P/E =
-0.01, 0.03, 0.1; the issue's scene) from this checkout and from a git worktree of ``--before``,
+0.01, 0.03, 0.1), prepared by ``studies/mixture_compaction/pre.py --n 144 --kappa 0.5 --mu 0.2
+--element T3 --pressures 0.01 0.03 0.1``, from this checkout and from a git worktree of ``--before``,
 alternately, ``--repeats`` times each; wall time of the whole command (interpreter start,
 imports, numba's cached kernels, all stages); φ of each equilibrated stage of both.
 
@@ -24,7 +25,7 @@ depend on what else runs on the machine.
     python benchmarks/soft_step_cost.py scaling --n 30 144 500 1500 --elements T3 T6 --workdir W
     python benchmarks/soft_step_cost.py compare --before REV --workdir W [--repeats 3]
 
-Writes benchmarks/results/soft_step_cost_{scaling,compare}.{md,json}.
+Writes benchmarks/results/soft_step_cost_scaling_t<threads>.{md,json} and soft_step_cost_compare_t<threads>[_<scene>].{md,json}.
 """
 
 from __future__ import annotations
@@ -124,8 +125,8 @@ def scaling(args) -> None:
             rows.append(row)
             print(f"{element} N = {n}: {row['wall'] / row['steps'] * 1e3:.1f} ms per step", flush=True)
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "soft_step_cost_scaling.json").write_text(json.dumps(rows, indent=1) + "\n")
-    (RESULTS / "soft_step_cost_scaling.md").write_text(scaling_table(rows, args))
+    (RESULTS / f"soft_step_cost_scaling_t{args.threads}.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (RESULTS / f"soft_step_cost_scaling_t{args.threads}.md").write_text(scaling_table(rows, args))
 
 
 def scaling_table(rows: list[dict], args) -> str:
@@ -152,7 +153,11 @@ def scaling_table(rows: list[dict], args) -> str:
             x = np.log([r["n_soft"] for r in sel])
             per_step = np.polyfit(x, np.log([r["wall"] / r["steps"] for r in sel]), 1)[0]
             per_it = np.polyfit(x, np.log([r["wall"] / max(r["stats"]["newton_iterations"], 1) for r in sel]), 1)[0]
-            lines.append(f"- {element}: per step {per_step:.2f}, per Newton iteration {per_it:.2f}")
+            phases = ", ".join(
+                f"{ph} {np.polyfit(x, np.log([max(r['phases'][ph], 1e-9) / r['steps'] for r in sel]), 1)[0]:.2f}"
+                for ph in PHASES)
+            lines.append(f"- {element}: per step {per_step:.2f}, per Newton iteration {per_it:.2f}; per step and "
+                         f"phase: {phases}")
     return "\n".join(lines) + "\n"
 
 
@@ -160,7 +165,12 @@ def compare(args) -> None:
     before = Path(args.workdir) / f"worktree_{args.before[:10]}"
     if not before.is_dir():
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(before), args.before], check=True)
-    scene = prepare(args.workdir, 144, 0.5, 0.2, "T3", [0.01, 0.03, 0.1])
+    study = Path(args.workdir) / "study144"
+    scene = args.scene or study / "runs" / "k0.5_mu0.2_s1" / "scene"
+    if not (scene / "scene.toml").is_file():  # the issue's scene, prepared by the study's own stage 1
+        subprocess.run([sys.executable, str(ROOT / "studies" / "mixture_compaction" / "pre.py"), "--workdir", str(study),
+                        "--n", "144", "--kappa", "0.5", "--mu", "0.2", "--element", "T3", "--pressures", "0.01", "0.03",
+                        "0.1"], check=True, capture_output=True)
     times: dict[str, list[float]] = {"before": [], "after": []}
     phis = {}
     for rep in range(args.repeats + 1):  # the first round is an untimed warm-up (numba caches)
@@ -178,11 +188,12 @@ def compare(args) -> None:
     result = {"before": args.before, "scene": str(scene), "threads": args.threads, "times": times,
               "ratio": ratio.tolist(), "phi": phis}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "soft_step_cost_compare.json").write_text(json.dumps(result, indent=1) + "\n")
-    lines = ["# 144-disk mixture (κ = 0.5, μ = 0.2, T3 × 92, P/E = 0.01, 0.03, 0.1): before and after", "",
+    name = f"soft_step_cost_compare_t{args.threads}" + ("" if args.scene is None else "_" + args.scene.parent.name)
+    (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1) + "\n")
+    lines = [f"# {scene}: before and after", "",
              f"`python benchmarks/soft_step_cost.py compare --before {args.before} --repeats {args.repeats} "
-             f"--threads {args.threads}`: `python -m compute` wall time, the two timed alternately after an "
-             "untimed round.", "",
+             f"--threads {args.threads}{'' if args.scene is None else ' --scene ' + str(args.scene)}`: "
+             "`python -m compute` wall time, the two timed alternately after an untimed round.", "",
              "| | runs (s) | median (s) |", "|---|---|---|"]
     for label in ("before", "after"):
         lines.append(f"| {label} | {', '.join(f'{t:.1f}' for t in times[label])} | {np.median(times[label]):.1f} |")
@@ -190,7 +201,7 @@ def compare(args) -> None:
               f"median {np.median(ratio):.1f}.", "", "| stage | φ before | φ after | difference |", "|---|---|---|---|"]
     for k, (a, b) in enumerate(zip(phis["before"], phis["after"])):
         lines.append(f"| {k} | {a:.6f} | {b:.6f} | {b - a:+.2e} |")
-    (RESULTS / "soft_step_cost_compare.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
@@ -219,6 +230,7 @@ def main(argv=None) -> None:
     c.add_argument("--before", required=True, help="git revision of the implementation to compare against")
     c.add_argument("--repeats", type=int, default=3)
     c.add_argument("--threads", type=int, default=1)
+    c.add_argument("--scene", type=Path, default=None, help="another scene than the 144-disk mixture")
     c.add_argument("--workdir", type=Path, required=True)
     one = sub.add_parser("_one")
     one.add_argument("scene", type=Path)

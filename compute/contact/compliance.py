@@ -21,7 +21,8 @@ class Compliance:
     ``diagonal`` (n_dofs,) the 1x1 blocks (0 for dofs in a dense block or not seen by contacts);
     ``block`` (n_dofs,) dense block of each dof (-1: none), ``pos`` (n_dofs,) its position in
     the block, ``start`` (n_blocks + 1,) offsets into ``dofs``, ``dofs`` the dofs of every dense
-    block, ``offset`` (n_blocks + 1,) offsets into ``values``, the row-major block entries.
+    block, ``offset`` (n_blocks + 1,) offsets into ``values``, the row-major entries of the
+    (symmetric) blocks.
     """
 
     diagonal: np.ndarray
@@ -57,7 +58,8 @@ class Compliance:
 
 @numba.njit(cache=True)
 def add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values):
-    """v += M̂⁻¹ e_d a: the velocity change of a generalised impulse ``a`` on dof ``d``."""
+    """v += M̂⁻¹ e_d a: the velocity change of a generalised impulse ``a`` on dof ``d`` (column d of
+    a symmetric block, read as its row: contiguous)."""
     b = block[d]
     if b < 0:
         v[d] += diagonal[d] * a
@@ -65,9 +67,9 @@ def add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values):
     s0 = start[b]
     size = start[b + 1] - s0
     p = pos[d]
-    o = offset[b]
+    o = offset[b] + p * size
     for q in range(size):
-        v[dofs[s0 + q]] += values[o + q * size + p] * a
+        v[dofs[s0 + q]] += values[o + q] * a
 
 
 @numba.njit(cache=True)
