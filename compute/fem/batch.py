@@ -34,7 +34,6 @@ import numba
 import numpy as np
 
 from .body import (
-    VOLUMETRIC_FORMULATIONS,
     ElementStresses,
     _area_hessians,
     _assemble_internal,
@@ -44,6 +43,7 @@ from .body import (
     _strain_energy,
     _volumetric_geometric,
     boundary_loop,
+    check_connectivity,
 )
 from .elements import ElementType, QuadratureRule, element_type
 from .material import NeoHookean
@@ -227,19 +227,7 @@ class BodyBatch:
         if not_finite.size:
             raise ValueError(f"body {not_finite[0]}: X is not finite (bodies concerned: "
                              f"{not_finite[:20].tolist()})")
-        if cells.ndim != 2 or cells.shape[1] != self.element.n_nodes:
-            raise ValueError(
-                f"cells must be (n_elem, {self.element.n_nodes}) for {element}, got {cells.shape}"
-            )
-        if cells.min() < 0 or cells.max() >= X.shape[1]:
-            raise ValueError(f"cells reference nodes outside 0..{X.shape[1] - 1}")
-        unused = np.setdiff1d(np.arange(X.shape[1]), cells)
-        if unused.size:
-            raise ValueError(f"nodes not used by any element: {unused[:20].tolist()}")
-        if volumetric not in VOLUMETRIC_FORMULATIONS:
-            raise ValueError(
-                f"volumetric must be one of {VOLUMETRIC_FORMULATIONS}, got {volumetric!r}"
-            )
+        check_connectivity(cells, X.shape[1], self.element, volumetric)
         self.X, self.cells, self.material, self.volumetric = X, cells, material, volumetric
         self.B, self.n_nodes = X.shape[0], X.shape[1]
         self.n_dof = 2 * self.n_nodes

@@ -453,6 +453,20 @@ def boundary_loop(cells: np.ndarray, element: ElementType) -> np.ndarray:
     return np.array(loop, dtype=np.int64)
 
 
+def check_connectivity(cells: np.ndarray, n_nodes: int, element: ElementType, volumetric: str) -> None:
+    """ValueError unless cells (n_elem, n_en) are ``element``'s, reference nodes 0..n_nodes-1 and
+    use every one of them, and ``volumetric`` is a known formulation."""
+    if cells.ndim != 2 or cells.shape[1] != element.n_nodes:
+        raise ValueError(f"cells must be (n_elem, {element.n_nodes}) for {element.name}, got {cells.shape}")
+    if cells.min() < 0 or cells.max() >= n_nodes:
+        raise ValueError(f"cells reference nodes outside 0..{n_nodes - 1}")
+    unused = np.setdiff1d(np.arange(n_nodes), cells)
+    if unused.size:
+        raise ValueError(f"nodes not used by any element: {unused[:20].tolist()}")
+    if volumetric not in VOLUMETRIC_FORMULATIONS:
+        raise ValueError(f"volumetric must be one of {VOLUMETRIC_FORMULATIONS}, got {volumetric!r}")
+
+
 # ----------------------------------------------------------------------------- the body
 
 
@@ -480,19 +494,7 @@ class FEBody:
         cells = np.ascontiguousarray(cells, dtype=np.int64)
         if X.ndim != 2 or X.shape[1] != 2 or not np.isfinite(X).all():
             raise ValueError(f"X must be a finite (n_nodes, 2) array, got shape {X.shape}")
-        if cells.ndim != 2 or cells.shape[1] != self.element.n_nodes:
-            raise ValueError(
-                f"cells must be (n_elem, {self.element.n_nodes}) for {element}, got {cells.shape}"
-            )
-        if cells.min() < 0 or cells.max() >= X.shape[0]:
-            raise ValueError(f"cells reference nodes outside 0..{X.shape[0] - 1}")
-        unused = np.setdiff1d(np.arange(X.shape[0]), cells)
-        if unused.size:
-            raise ValueError(f"nodes not used by any element: {unused[:20].tolist()}")
-        if volumetric not in VOLUMETRIC_FORMULATIONS:
-            raise ValueError(
-                f"volumetric must be one of {VOLUMETRIC_FORMULATIONS}, got {volumetric!r}"
-            )
+        check_connectivity(cells, X.shape[0], self.element, volumetric)
         self.X, self.cells, self.material, self.volumetric = X, cells, material, volumetric
         self.n_nodes, self.n_dof = X.shape[0], 2 * X.shape[0]
         self._mean_dilatation = volumetric == "mean_dilatation"
