@@ -17,7 +17,8 @@ bodies is fitted over N >= 144.
 0.01, 0.03, 0.1), prepared by ``studies/mixture_compaction/pre.py --n 144 --kappa 0.5 --mu 0.2
 --element T3 --pressures 0.01 0.03 0.1``, from this checkout and from a git worktree of ``--before``,
 alternately, ``--repeats`` times each; wall time of the whole command (interpreter start,
-imports, numba's cached kernels, all stages); φ of each equilibrated stage of both.
+imports, numba's cached kernels, all stages); φ and the pressure from contacts and from walls of
+each equilibrated stage of both.
 
 Threads: each case runs with ``--threads`` numba threads (default 1) so that timings do not
 depend on what else runs on the machine.
@@ -25,7 +26,7 @@ depend on what else runs on the machine.
     python benchmarks/soft_step_cost.py scaling --n 30 144 500 1500 --elements T3 T6 --workdir W
     python benchmarks/soft_step_cost.py compare --before REV --workdir W [--repeats 3]
 
-Writes benchmarks/results/soft_step_cost_scaling_t<threads>.{md,json} and soft_step_cost_compare_t<threads>[_<scene>].{md,json}.
+Writes benchmarks/results/soft_step_cost_scaling_t<threads>.{md,json} and soft_step_cost_compare_t<threads>_scene_<tree>.{md,json}.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
+STATS = ("import json, sys; from compute.run import Run; r = Run(sys.argv[1], sys.argv[2], log=lambda m: None); "
+         "r.execute(); print(json.dumps(r.stepper.stats))")
 PHASES = ("detection", "assembly", "factorisation", "solves", "compliance", "contact solve", "recovery",
           "backtracking check")
 
@@ -87,7 +90,7 @@ def measure_one(scene: Path, warmup: int, steps: int) -> dict:
     wall = time.perf_counter() - t0
     phases = {p: TIMES.seconds.get(p, 0.0) - seconds0.get(p, 0.0) for p in PHASES}
     stats = {k: stepper.stats[k] - stats0.get(k, 0) for k in stepper.stats}
-    soft_bytes = sum(_nbytes(g.batch) + _nbytes(g.matrices) for g in model.soft)
+    soft_bytes = sum(_nbytes(g) + _nbytes(g.batch) + _nbytes(g.matrices) for g in model.soft)
     n_soft = sum(g.B for g in model.soft)
     return {"scene": str(scene), "n_soft": n_soft, "n_bodies": int(model.scene.n_bodies), "steps": steps,
             "wall": wall, "phases": phases, "stats": stats,
@@ -96,14 +99,10 @@ def measure_one(scene: Path, warmup: int, steps: int) -> dict:
 
 
 def _nbytes(obj) -> int:
-    """Bytes of the numpy arrays held (one level deep) by ``obj``."""
-    total = 0
-    for value in vars(obj).values():
-        if isinstance(value, np.ndarray):
-            total += value.nbytes
-        elif hasattr(value, "__dict__") and not isinstance(value, type):
-            total += sum(v.nbytes for v in vars(value).values() if isinstance(v, np.ndarray))
-    return total
+    """Bytes of the numpy arrays that are attributes of ``obj`` (the group's state and work
+    arrays, the batch's geometry and mass, the factors), shared ones (connectivity, patterns)
+    included once."""
+    return sum(v.nbytes for v in vars(obj).values() if isinstance(v, np.ndarray))
 
 
 def _child_env(threads: int) -> dict:
@@ -165,55 +164,70 @@ def compare(args) -> None:
     before = Path(args.workdir) / f"worktree_{args.before[:10]}"
     if not before.is_dir():
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(before), args.before], check=True)
-    study = Path(args.workdir) / "study144"
-    scene = args.scene or study / "runs" / "k0.5_mu0.2_s1" / "scene"
-    if not (scene / "scene.toml").is_file():  # the issue's scene, prepared by the study's own stage 1
-        subprocess.run([sys.executable, str(ROOT / "studies" / "mixture_compaction" / "pre.py"), "--workdir", str(study),
-                        "--n", "144", "--kappa", "0.5", "--mu", "0.2", "--element", "T3", "--pressures", "0.01", "0.03",
-                        "0.1"], check=True, capture_output=True)
+    # the scene, prepared by the study's own stage 1 from either tree (its jamming runs compute:
+    # the two trees jam the same random packing into slightly different states)
+    tree = before if args.prepare_with == "before" else ROOT
+    study = Path(args.workdir) / f"study144_{args.prepare_with}"
+    scene = study / "runs" / "k0.5_mu0.2_s1" / "scene"
+    if not (scene / "scene.toml").is_file():
+        env = _child_env(args.threads)
+        env["PYTHONPATH"] = str(tree)
+        subprocess.run([sys.executable, str(tree / "studies" / "mixture_compaction" / "pre.py"), "--workdir",
+                        str(study), "--n", "144", "--kappa", "0.5", "--mu", "0.2", "--element", "T3", "--pressures",
+                        "0.01", "0.03", "0.1"], cwd=tree, env=env, check=True, capture_output=True)
     times: dict[str, list[float]] = {"before": [], "after": []}
-    phis = {}
+    phis, iters = {}, {}
     for rep in range(args.repeats + 1):  # the first round is an untimed warm-up (numba caches)
         for label, tree in (("before", before), ("after", ROOT)):
             out = Path(args.workdir) / f"compare_{label}"
             env = _child_env(args.threads)
             env["PYTHONPATH"] = str(tree)
+            if rep == 0:  # untimed round: the stepper's statistics, in-process (both trees keep them)
+                out_json = subprocess.run([sys.executable, "-c", STATS, str(scene), str(out)], cwd=tree, env=env,
+                                          check=True, capture_output=True, text=True).stdout
+                iters[label] = json.loads(out_json.strip().splitlines()[-1])["newton_iterations"]
+                continue
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-m", "compute", str(scene), "--out", str(out)], cwd=tree, env=env,
                            check=True, capture_output=True)
-            if rep:
-                times[label].append(time.perf_counter() - t0)
-            phis[label] = _stage_phis(out)
+            times[label].append(time.perf_counter() - t0)
+            phis[label] = _stage_measures(out)
     ratio = np.array(times["before"]) / np.array(times["after"])
     result = {"before": args.before, "scene": str(scene), "threads": args.threads, "times": times,
-              "ratio": ratio.tolist(), "phi": phis}
+              "ratio": ratio.tolist(), "stages": phis, "newton_iterations": iters}
     RESULTS.mkdir(exist_ok=True)
-    name = f"soft_step_cost_compare_t{args.threads}" + ("" if args.scene is None else "_" + args.scene.parent.name)
+    name = f"soft_step_cost_compare_t{args.threads}_scene_{args.prepare_with}"
     (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1) + "\n")
-    lines = [f"# {scene}: before and after", "",
+    lines = ["# 144-disk mixture (κ = 0.5, μ = 0.2, T3 × 92, P/E = 0.01, 0.03, 0.1): before and after", "",
              f"`python benchmarks/soft_step_cost.py compare --before {args.before} --repeats {args.repeats} "
-             f"--threads {args.threads}{'' if args.scene is None else ' --scene ' + str(args.scene)}`: "
-             "`python -m compute` wall time, the two timed alternately after an untimed round.", "",
+             f"--threads {args.threads} --prepare-with {args.prepare_with}`: `python -m compute` wall time, the two "
+             f"timed alternately after an untimed round; the scene prepared by the {args.prepare_with} tree's "
+             "`studies/mixture_compaction/pre.py --n 144 --kappa 0.5 --mu 0.2 --element T3 --pressures 0.01 0.03 0.1`.",
+             "", f"Newton iterations (whole run): before {iters['before']}, after {iters['after']}; time per Newton "
+             f"iteration (median run / iterations) before {np.median(times['before']) / max(iters['before'], 1) * 1e3:.1f} ms, "
+             f"after {np.median(times['after']) / max(iters['after'], 1) * 1e3:.1f} ms.", "",
              "| | runs (s) | median (s) |", "|---|---|---|"]
     for label in ("before", "after"):
         lines.append(f"| {label} | {', '.join(f'{t:.1f}' for t in times[label])} | {np.median(times[label]):.1f} |")
     lines += ["", f"Speed-up (before / after, per pair): {', '.join(f'{r:.1f}' for r in ratio)}; "
-              f"median {np.median(ratio):.1f}.", "", "| stage | φ before | φ after | difference |", "|---|---|---|---|"]
+              f"median {np.median(ratio):.1f}.", "",
+              "Equilibrated stages (post.table.measure_output): φ, and the pressure from the contacts (granular "
+              "stress) against the walls'.", "",
+              "| stage | φ before | φ after | difference | P contacts / P walls − 1, before | after |",
+              "|---|---|---|---|---|---|"]
     for k, (a, b) in enumerate(zip(phis["before"], phis["after"])):
-        lines.append(f"| {k} | {a:.6f} | {b:.6f} | {b - a:+.2e} |")
+        lines.append(f"| {k} | {a['phi']:.6f} | {b['phi']:.6f} | {b['phi'] - a['phi']:+.2e} | "
+                     f"{a['P'] / a['P_walls'] - 1:+.1e} | {b['P'] / b['P_walls'] - 1:+.1e} |")
     (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
-def _stage_phis(out: Path) -> list[float]:
-    """φ of the equilibrated stages, from the last history row of each stage."""
-    import csv
+def _stage_measures(out: Path) -> list[dict]:
+    """φ, P (from contacts) and P_walls of every equilibrated stage of an output folder."""
+    from post.table import measure_output
 
-    rows = list(csv.DictReader(open(out / "history.csv")))
-    last = {}
-    for r in rows:
-        last[int(r["stage"])] = float(r["phi"])
-    return [last[k] for k in sorted(last)]
+    return [{k: float(r[k]) for k in ("phi", "P", "P_walls")} for r in measure_output(out, min_contacts=1)
+            if r["equilibrated"]]
 
 
 def main(argv=None) -> None:
@@ -230,7 +244,8 @@ def main(argv=None) -> None:
     c.add_argument("--before", required=True, help="git revision of the implementation to compare against")
     c.add_argument("--repeats", type=int, default=3)
     c.add_argument("--threads", type=int, default=1)
-    c.add_argument("--scene", type=Path, default=None, help="another scene than the 144-disk mixture")
+    c.add_argument("--prepare-with", choices=("after", "before"), default="after",
+                   help="the tree whose studies/mixture_compaction/pre.py prepares the scene (default after)")
     c.add_argument("--workdir", type=Path, required=True)
     one = sub.add_parser("_one")
     one.add_argument("scene", type=Path)

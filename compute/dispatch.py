@@ -269,6 +269,9 @@ def _child(argv: list[str] | None = None) -> int:
             (out / "FAILED").unlink()
         from compute.errors import SceneError, SimulationError
         from compute.run import run
+        from compute.threads import configure
+
+        configure()  # NUMBA_NUM_THREADS (set by execute_run) threads, passive when idle
 
         try:
             run(a.scene, out, resume=True, log=lambda msg: print(msg, flush=True))

@@ -1,30 +1,42 @@
 """Threads of the parallel numba kernels (loops over the bodies of a group).
 
-``configure(n)`` must run before the first parallel kernel: it picks numba's threading layer
-and the number of threads. OpenMP (numba's "omp" layer, GNU libgomp) lets idle threads spin
-for a while before they sleep, which steals a shared core from other jobs; with
-``OMP_WAIT_POLICY=passive`` they sleep at once. Measured (benchmarks/results/threads.md, the
-144-disk mixture): beside one busy process, 2 spinning threads took 12.5 s against 6.4 s
-passive and 6.7 s with one thread; alone the three are within noise (6.4 to 7.0 s). Passive
-OpenMP is the default; numba's "workqueue" layer was no better. On the paper's size the
-parallel kernels matter more (benchmarks/results/soft_step_cost_scaling_t{1,2}.md: 1500 T6
-disks, 3.5 s per step on one thread, 3.0 s on two; the contact solve, serial, is most of it).
+``configure(n)`` runs before the first parallel kernel: it sets the most threads a run may use
+and OpenMP's wait policy. numba's "omp" layer (GNU libgomp) lets idle threads spin before they
+sleep, which steals a shared core from other jobs: beside one busy process the 144-disk mixture
+took 12.4 s with 2 spinning threads (10.4 s with a short spin) against 6.4 s with passive
+threads and 6.9 s with one thread (benchmarks/results/threads.md). Passive threads are the
+default (a user's OMP_WAIT_POLICY or GOMP_SPINCOUNT wins).
+
+A passive pool pays a wake-up for every parallel kernel launch (about 50 µs here, against 2 µs
+with one thread), which a small group of bodies does not earn back: ``for_bodies(n)`` gives a
+group one thread per ``MIN_BODIES_PER_THREAD`` bodies, up to the configured number.
 """
 
 from __future__ import annotations
 
 import os
 
+MIN_BODIES_PER_THREAD = 200
+_max_threads: int | None = None
+
 
 def configure(threads: int | None = None) -> int:
-    """Use ``threads`` threads (default: NUMBA_NUM_THREADS or every core); returns the number set."""
-    os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+    """Use at most ``threads`` threads (default: NUMBA_NUM_THREADS or every core); returns it."""
+    global _max_threads
+    if "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ:  # the user's choice wins
+        os.environ["OMP_WAIT_POLICY"] = "passive"
     import numba
 
-    if threads is None:
-        return numba.config.NUMBA_NUM_THREADS
-    if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"threads: expected 1..{numba.config.NUMBA_NUM_THREADS} (the cores numba may use), "
-                         f"got {threads}")
-    numba.set_num_threads(threads)
-    return threads
+    available = numba.config.NUMBA_NUM_THREADS
+    if threads is not None and not 1 <= threads <= available:
+        raise ValueError(f"threads: expected 1..{available} (the cores numba may use), got {threads}")
+    _max_threads = threads or available
+    return _max_threads
+
+
+def for_bodies(n: int) -> None:
+    """Set the threads of the next parallel kernels (in this thread) for a group of n bodies."""
+    import numba
+
+    most = _max_threads or numba.config.NUMBA_NUM_THREADS
+    numba.set_num_threads(max(1, min(most, n // MIN_BODIES_PER_THREAD)))

@@ -27,6 +27,7 @@ import numpy as np
 from compute.errors import StepFailure
 from compute.bodies.soft_matrix import IndefiniteMatrix, NewtonMatrices
 from compute.fem.batch import BodyBatch
+from compute.threads import for_bodies
 from compute.timing import TIMES
 
 
@@ -66,6 +67,7 @@ class SoftBodies:
 
     # --- the step -------------------------------------------------------------------------
     def begin_step(self, q, v, h, theta, load) -> None:
+        for_bodies(self.B)
         if self.matrices is None:
             self.matrices = NewtonMatrices(self.batch)
         g = tuple(load.gravity)
@@ -99,6 +101,7 @@ class SoftBodies:
         iterations need the internal force only."""
         self.iteration += 1
         h, th, batch = self._h, self._theta, self.batch
+        for_bodies(self.B)
         vb = v[self.dofs].reshape(self.B, -1)
         active = ~self._settled
         if active.any():
@@ -158,6 +161,7 @@ class SoftBodies:
         (start (B + 1,), dofs (m,) global, values) in the layout of
         :meth:`compute.contact.compliance.Compliance.build`."""
         local = dofs - self.dof0
+        for_bodies(self.B)
         n = 2 * self.n_nodes
         start = np.searchsorted(local, n * np.arange(self.B + 1)).astype(np.int64)
         values = self.matrices.compliance(start, (local % n).astype(np.int64))
@@ -171,6 +175,7 @@ class SoftBodies:
     def recover(self, hr, v_free, v) -> None:
         """v_b = v_free,b + M̂_b⁻¹ (H r)_b for every body with a contact impulse (in place in v)."""
         rhs = hr[self.dofs].reshape(self.B, -1)
+        for_bodies(self.B)
         touched = np.any(rhs != 0.0, axis=1)
         if touched.any():
             dv = self.matrices.solve(rhs, touched)
@@ -181,6 +186,7 @@ class SoftBodies:
         """None if every element keeps J / J_n within [lo, hi] at x_θ and x_new for velocities v;
         else (body id, elements (k,), smallest ratio) of the first body that does not."""
         x_theta, x_new = self.positions(v[self.dofs].reshape(self.B, -1))
+        for_bodies(self.B)
         for x in (x_theta,) if self._theta == 1.0 else (x_theta, x_new):
             span = self.batch.jacobian_ratio_range(x, self._j_n)
             bad = ~((span[:, 0] >= lo) & (span[:, 1] <= hi))
