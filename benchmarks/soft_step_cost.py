@@ -121,6 +121,7 @@ def scaling(args) -> None:
                                  env=_child_env(args.threads), capture_output=True, text=True, check=True)
             row = json.loads(out.stdout.strip().splitlines()[-1])
             row["element"], row["n"] = element, n
+            row["scene"] = str(scene.relative_to(args.workdir))
             rows.append(row)
             print(f"{element} N = {n}: {row['wall'] / row['steps'] * 1e3:.1f} ms per step", flush=True)
     RESULTS.mkdir(exist_ok=True)
@@ -193,7 +194,7 @@ def compare(args) -> None:
             times[label].append(time.perf_counter() - t0)
             phis[label] = _stage_measures(out)
     ratio = np.array(times["before"]) / np.array(times["after"])
-    result = {"before": args.before, "scene": str(scene), "threads": args.threads, "times": times,
+    result = {"before": args.before, "scene": str(scene.relative_to(args.workdir)), "threads": args.threads, "times": times,
               "ratio": ratio.tolist(), "stages": phis, "newton_iterations": iters}
     RESULTS.mkdir(exist_ok=True)
     name = f"soft_step_cost_compare_t{args.threads}_scene_{args.prepare_with}"
