@@ -17,7 +17,8 @@ The task starts a child process ``python -m compute.dispatch SCENE OUT`` and wai
 - the child always runs with ``resume=True`` (compute.run: from ``OUT/checkpoint`` when there is
   one, else from the scene);
 - numba, OpenMP and BLAS threads are capped to ``threads`` per run (default 1: the runs, not the
-  threads, fill the cores; ENVIRONMENT.md);
+  threads, fill the cores: two runs of two threads each would oversubscribe two cores,
+  benchmarks/results/threads.md);
 - its stdout and stderr are appended to ``OUT/compute.log``.
 
 Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE), ``skipped``

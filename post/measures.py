@@ -1,4 +1,4 @@
-"""Measures of a packing frame: pure functions on arrays (DESIGN.md, "Measures").
+"""Measures of a packing frame: pure functions on arrays (the definitions below).
 
 Definitions (N_p particles, walls are not particles):
 

@@ -1,4 +1,4 @@
-"""Optional rendering of a bodies frame with pyvista, off screen (shared/ENVIRONMENT.md).
+"""Optional rendering of a bodies frame with pyvista, off screen.
 
 Headless VTK needs ``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow`` set before pyvista is imported
 and ``pyvista.OFF_SCREEN = True``. With no display, no EGL and no OSMesa VTK segfaults instead of

@@ -22,7 +22,7 @@ def polygon_signed_area(xy):
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-# ---- the default mesh (ENVIRONMENT.md: 92 triangles, 57 / 205 nodes) -------------------------
+# ---- the default mesh (92 triangles: 57 T3 / 205 T6 nodes) ---------------------------------
 
 
 @pytest.mark.parametrize("element, n_nodes, cell_width", [("T3", 57, 3), ("T6", 205, 6)])
