@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from compute.contact.compliance import Compliance, delassus_blocks
-from compute.contact.rows import Contacts
+from compute.contact.rows import Contacts, generalised_impulse
 
 
 @dataclass
@@ -53,6 +53,4 @@ class ContactProblem:
 
     def generalised_impulse(self, n_dofs: int) -> np.ndarray:
         """H r (n_dofs,) of the current impulses."""
-        ok = self.dof >= 0
-        val = self.hn * self.impulse[:, :1] + self.ht * self.impulse[:, 1:]
-        return np.bincount(self.dof[ok], weights=val[ok], minlength=n_dofs)
+        return generalised_impulse(self.dof, self.hn, self.ht, self.impulse, n_dofs)

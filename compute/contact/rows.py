@@ -113,3 +113,17 @@ def disk_wall_rows(pairs, centres, radii, dof0, bounds, wall_dof0, normals, axes
         ht[c, 0], ht[c, 1], ht[c, 2] = -tx, -ty, -radii[a]
         hn[c, 3] = nx * axes[w, 0] + ny * axes[w, 1]
         ht[c, 3] = tx * axes[w, 0] + ty * axes[w, 1]
+
+
+@numba.njit(cache=True)
+def generalised_impulse(dof, hn, ht, r, n_dofs):
+    """H r (n_dofs,) for the sparse rows dof, hn, ht (nc, MAX_DOFS) and impulses r (nc, 2)."""
+    hr = np.zeros(n_dofs)
+    for c in range(dof.shape[0]):
+        if r[c, 0] == 0.0 and r[c, 1] == 0.0:
+            continue
+        for k in range(dof.shape[1]):
+            d = dof[c, k]
+            if d >= 0:
+                hr[d] += hn[c, k] * r[c, 0] + ht[c, k] * r[c, 1]
+    return hr

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from compute.contact.compliance import add_compliance
+from compute.contact.rows import generalised_impulse
 from compute.solvers import SolveReport
 
 
@@ -116,17 +117,7 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
 def apply_impulses(dof, hn, ht, r, v, diagonal, block, pos, start, dofs, offset, values):
     """v += M̂⁻¹ H r (the warm start): H r gathered per dof first, so that each dof's column of a
     dense block is added once, and contacts without impulse cost nothing."""
-    nc, m = dof.shape
-    hr = np.zeros(v.shape[0])
-    touched = np.zeros(v.shape[0], np.bool_)
-    for c in range(nc):
-        if r[c, 0] == 0.0 and r[c, 1] == 0.0:
-            continue
-        for k in range(m):
-            d = dof[c, k]
-            if d >= 0:
-                hr[d] += hn[c, k] * r[c, 0] + ht[c, k] * r[c, 1]
-                touched[d] = True
+    hr = generalised_impulse(dof, hn, ht, r, v.shape[0])
     for d in range(v.shape[0]):
-        if touched[d] and hr[d] != 0.0:
+        if hr[d] != 0.0:
             add_compliance(v, d, hr[d], diagonal, block, pos, start, dofs, offset, values)
