@@ -61,6 +61,5 @@ def _cut(attempt, state, h_nominal, h, depth, max_cuts, step_index, stats):
         second = _cut(attempt, state, h_nominal, 0.5 * h, depth + 1, max_cuts, step_index, stats)
         second.sweeps += first.sweeps
         second.newton_iterations += first.newton_iterations
-        second.factorizations += first.factorizations
         second.cuts += first.cuts + 1
         return second

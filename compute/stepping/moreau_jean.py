@@ -39,7 +39,6 @@ class StepReport:
     max_penetration: float  # max(-gap) at the start of the step, >= 0
     contacts: Contacts
     newton_iterations: int = 1
-    factorizations: int = 0
     cuts: int = 0
     h: float = 0.0
 
@@ -58,8 +57,14 @@ class Stepper:
         self.newton_tolerance = s.newton_tolerance * model.diameter
         self.newton_max_iterations = s.newton_max_iterations
         self.gravity = tuple(model.scene.loading.gravity)
-        self.stats = {"steps": 0, "newton_iterations": 0, "factorizations": 0, "stabilised_factorizations": 0,
-                      "cuts": 0, "nlgs_sweeps": 0, "backtracks": 0}
+        self._counts = {"steps": 0, "newton_iterations": 0, "cuts": 0, "nlgs_sweeps": 0, "backtracks": 0}
+
+    @property
+    def stats(self) -> dict:
+        """Counts since the stepper was made: steps, Newton iterations, cuts, NLGS sweeps,
+        backtracks, and the soft groups' numeric factorisations (all attempts, stabilised ones too)."""
+        return {**self._counts, "factorizations": sum(g.matrices.factorizations for g in self.model.soft if g.matrices),
+                "stabilised_factorizations": sum(g.matrices.stabilised for g in self.model.soft if g.matrices)}
 
     def step(self, state, pressure: float, wall_speed: float = 0.0) -> StepReport:
         """Advance ``state`` in place. Pressure control (walls pushed by ``pressure`` × length) or,
@@ -67,13 +72,13 @@ class Stepper:
         load = Load(pressure, wall_speed, self.gravity)
         if self.model.nonlinear:
             rep = control.step_with_cuts(lambda st, h: self._attempt(st, load, h), state, self.h, self.MAX_CUTS,
-                                         self.stats)
+                                         self._counts)
         else:
             try:
                 rep = self._attempt(state, load, self.h)
             except StepFailure as exc:
                 raise SimulationError(f"step {state.step + 1}: {exc}") from None
-        self.stats["steps"] += 1
+        self._counts["steps"] += 1
         return rep
 
     def _attempt(self, state, load: Load, h: float) -> StepReport:
@@ -84,20 +89,13 @@ class Stepper:
             contacts = detection.narrow_phase(m, state, branches=False)
         for g in m.groups:
             g.begin_step(state.q, state.v, h, th, load)
-        before = np.array([(g.matrices.factorizations, g.matrices.stabilised) for g in m.soft]).reshape(-1, 2)
-        if m.nonlinear:
-            v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, self.newton_tolerance,
-                                               self.newton_max_iterations, self.stats)
-        else:  # linear groups: one contact solve is exact
-            v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, np.inf, 1, self.stats)
+        # linear groups only: one contact solve is exact
+        tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if m.nonlinear else (np.inf, 1)
+        v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts)
         if not np.all(np.isfinite(v)):
             raise StepFailure(f"non-finite velocities after the contact solve (NLGS residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")
-        after = np.array([(g.matrices.factorizations, g.matrices.stabilised) for g in m.soft]).reshape(-1, 2)
-        factorizations, stabilised = (after - before).sum(axis=0)
-        self.stats["newton_iterations"] += iterations
-        self.stats["factorizations"] += int(factorizations)
-        self.stats["stabilised_factorizations"] += int(stabilised)
+        self._counts["newton_iterations"] += iterations
         state.q += h * ((1.0 - th) * state.v + th * v)
         state.v = v
         state.time += h
@@ -105,4 +103,4 @@ class Stepper:
         detection.store_impulses(m, state, contacts.impulse)
         return StepReport(report.iterations, report.residual, int(np.count_nonzero(contacts.impulse[:, 0] > 0.0)),
                           float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0, contacts,
-                          newton_iterations=iterations, factorizations=int(factorizations), h=h)
+                          newton_iterations=iterations, h=h)
