@@ -17,6 +17,7 @@ before this rule).
 
 from __future__ import annotations
 
+import functools
 import os
 
 MIN_BODIES_PER_THREAD = 200
@@ -43,3 +44,13 @@ def for_bodies(n: int) -> None:
 
     most = _max_threads or numba.config.NUMBA_NUM_THREADS
     numba.set_num_threads(max(1, min(most, n // MIN_BODIES_PER_THREAD)))
+
+
+def sized_to_group(method):
+    """Decorator of a body group's methods that launch parallel kernels: threads per
+    :func:`for_bodies` of the group's size (``len(self)``)."""
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        for_bodies(len(self))
+        return method(self, *args, **kwargs)
+    return wrapper

@@ -27,7 +27,7 @@ import numpy as np
 from compute.errors import StepFailure
 from compute.bodies.soft_matrix import IndefiniteMatrix, NewtonMatrices
 from compute.fem.batch import BodyBatch
-from compute.threads import for_bodies
+from compute.threads import sized_to_group
 from compute.timing import TIMES
 
 
@@ -66,8 +66,8 @@ class SoftBodies:
         self.nodes(q)[:] = self.batch.X
 
     # --- the step -------------------------------------------------------------------------
+    @sized_to_group
     def begin_step(self, q, v, h, theta, load) -> None:
-        for_bodies(self.B)
         if self.matrices is None:
             self.matrices = NewtonMatrices(self.batch)
         g = tuple(load.gravity)
@@ -92,6 +92,7 @@ class SoftBodies:
         dx = h * ((1.0 - th) * self._v_n + th * v_b).reshape(self.B, self.n_nodes, 2)
         return self._x_n + th * dx, self._x_n + dx
 
+    @sized_to_group
     def free_velocity(self, v, out) -> None:
         """v_free = v - M̂⁻¹ R(v) of every unsettled body (module docstring), written to ``out``.
 
@@ -101,7 +102,6 @@ class SoftBodies:
         iterations need the internal force only."""
         self.iteration += 1
         h, th, batch = self._h, self._theta, self.batch
-        for_bodies(self.B)
         vb = v[self.dofs].reshape(self.B, -1)
         active = ~self._settled
         if active.any():
@@ -156,12 +156,12 @@ class SoftBodies:
         dv = np.abs(v_new[self.dofs] - v_old[self.dofs]).reshape(self.B, -1).max(axis=1)
         self._settled |= self._h * self._theta * dv <= tol
 
+    @sized_to_group
     def compliance(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Dense blocks of M̂⁻¹ on the contact dofs ``dofs`` (sorted, unique, all in this group):
         (start (B + 1,), dofs (m,) global, values) in the layout of
         :meth:`compute.contact.compliance.Compliance.build`."""
         local = dofs - self.dof0
-        for_bodies(self.B)
         n = 2 * self.n_nodes
         start = np.searchsorted(local, n * np.arange(self.B + 1)).astype(np.int64)
         values = self.matrices.compliance(start, (local % n).astype(np.int64))
@@ -172,21 +172,21 @@ class SoftBodies:
                               f"its contact dofs (Newton iteration {self.iteration}, h = {self._h:.4g})")
         return start, dofs, values
 
+    @sized_to_group
     def recover(self, hr, v_free, v) -> None:
         """v_b = v_free,b + M̂_b⁻¹ (H r)_b for every body with a contact impulse (in place in v)."""
         rhs = hr[self.dofs].reshape(self.B, -1)
-        for_bodies(self.B)
         touched = np.any(rhs != 0.0, axis=1)
         if touched.any():
             dv = self.matrices.solve(rhs, touched)
             vb = v[self.dofs].reshape(self.B, -1)
             vb[touched] = v_free[self.dofs].reshape(self.B, -1)[touched] + dv[touched]
 
+    @sized_to_group
     def area_change(self, v, lo: float, hi: float):
         """None if every element keeps J / J_n within [lo, hi] at x_θ and x_new for velocities v;
         else (body id, elements (k,), smallest ratio) of the first body that does not."""
         x_theta, x_new = self.positions(v[self.dofs].reshape(self.B, -1))
-        for_bodies(self.B)
         for x in (x_theta,) if self._theta == 1.0 else (x_theta, x_new):
             span = self.batch.jacobian_ratio_range(x, self._j_n)
             bad = ~((span[:, 0] >= lo) & (span[:, 1] <= hi))
@@ -198,9 +198,11 @@ class SoftBodies:
         return None
 
     # --- measures ---------------------------------------------------------------------------
+    @sized_to_group
     def centres(self, q) -> np.ndarray:
         return self.batch.centroids(self.nodes(q))
 
+    @sized_to_group
     def area(self, q) -> float:
         return float(self.batch.areas(self.nodes(q)).sum())
 
@@ -211,6 +213,7 @@ class SoftBodies:
         c = xb.mean(axis=1)
         return np.ascontiguousarray(c), np.sqrt(np.max(np.sum((xb - c[:, None]) ** 2, axis=2), axis=1))
 
+    @sized_to_group
     def kinetic_energy(self, v) -> float:
         return self.batch.kinetic_energy(v[self.dofs].reshape(self.B, -1))
 
@@ -219,6 +222,7 @@ class SoftBodies:
         x = self.nodes(q)
         return {int(i): (x[b].copy(), self.batch.cells, self.batch.element.name) for b, i in enumerate(self.ids)}
 
+    @sized_to_group
     def frame_fields(self, q, v) -> tuple[dict, dict]:
         """Point fields {name: (B, n, 3)} and cell fields {name: (B, n_elem, ...)}."""
         x, w = self.nodes(q), self.nodes(v)
