@@ -113,7 +113,7 @@ class SoftBodies:
                 ok &= batch.internal_force(x_theta, active & ~tangent, f)
             if not ok.all():
                 b = int(np.flatnonzero(~ok)[0])
-                raise StepFailure(self._inverted(b, x_theta[b], "x_theta"))
+                raise StepFailure(self._inverted(b, x_theta, "x_theta"))
             residual = batch.mass_times(vb - self._v_n) + h * f - h * self._gravity[1]
             if not np.isfinite(residual[active]).all():
                 b = int(np.flatnonzero(active & ~np.isfinite(residual).all(axis=1))[0])
@@ -236,7 +236,8 @@ class SoftBodies:
 
     # --- diagnoses ---------------------------------------------------------------------------
     def _inverted(self, b: int, x: np.ndarray, where: str) -> str:
-        els = np.flatnonzero(~(self.batch.jacobians(x[None])[0] > 0.0).all(axis=1))
+        """Diagnosis of body b's inverted elements in the group's positions x (B, n, 2)."""
+        els = np.flatnonzero(~(self.batch.jacobians(x)[b] > 0.0).all(axis=1))
         return (f"body {int(self.ids[b])}: {els.size} inverted element(s) at {where} "
                 f"{els[:10].tolist()}{' ...' if els.size > 10 else ''} (Newton iteration {self.iteration}, "
                 f"h = {self._h:.4g})")

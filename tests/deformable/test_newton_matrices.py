@@ -119,3 +119,23 @@ def test_no_positive_definite_level_names_the_bodies(pressed):
     with pytest.raises(IndefiniteMatrix) as err:
         nm.update(bad, lambda mask: g, key, 0.05, np.zeros(batch.B, bool), np.ones(batch.B, bool))
     assert err.value.bodies.tolist() == [1]
+
+
+def test_inverted_body_of_a_group_is_named():
+    """A Newton iterate that inverts elements of one body of a several-body group stops the
+    attempt with a diagnosis naming that body and its elements (not another exception)."""
+    from compute.bodies import Load
+    from compute.bodies.soft import SoftBodies
+    from compute.errors import StepFailure
+
+    m = reference_disk_mesh(30, "T3")
+    X = np.stack([np.asarray(m.points)[:, :2] + (3.0 * b, 0.0) for b in range(3)])
+    group = SoftBodies([10, 11, 12], X, np.asarray(m.cells), "T3", MATERIAL, "standard", 0, 0, 0)
+    q = np.zeros(2 * X[:, :, 0].size)
+    group.initial(q)
+    v = np.zeros_like(q)
+    group.begin_step(q, v, 1.0, 1.0, Load(0.0, 0.0, (0.0, 0.0)))
+    flip = group.nodes(v)
+    flip[1, :, 0] = -2.0 * X[1, :, 0] + 6.0  # body 11 mirrored about its centre: every element inverted
+    with pytest.raises(StepFailure, match=r"body 11: \d+ inverted element"):
+        group.free_velocity(v, np.zeros_like(v))
