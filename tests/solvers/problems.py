@@ -1,0 +1,60 @@
+"""Random small frictional contact problems (ContactProblem) and their dense form, for the tests
+of the contact solvers against the Lemke oracle."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from compute.contact.compliance import Compliance, delassus_blocks
+from compute.contact.problem import ContactProblem
+from compute.contact.rows import MAX_DOFS
+
+
+def random_problem(rng, kind: str, nc: int, friction: float = 0.5) -> ContactProblem:
+    """A problem with ``nc`` contacts over dofs of kind "rigid" (1x1 compliance blocks only),
+    "soft" (one dense SPD block), "mixed" (both), "rank_deficient" (more contact rows than the
+    dofs they touch, rigid). μ uniform in [0, friction] with some frictionless contacts; gap
+    terms such that some velocity v0 keeps every contact open (a feasible problem: with more
+    rows than dofs, random gaps could forbid every velocity), v_free closing about half of them."""
+    n_rigid = {"rigid": 3 * nc, "soft": 0, "mixed": nc + 2, "rank_deficient": 3}[kind]
+    n_soft = {"rigid": 0, "soft": 2 * nc + 4, "mixed": nc + 4, "rank_deficient": 0}[kind]
+    n = n_rigid + n_soft
+    diagonals = [(np.arange(n_rigid), rng.uniform(0.5, 2.0, n_rigid))] if n_rigid else []
+    dense = []
+    if n_soft:
+        a = rng.normal(size=(n_soft, n_soft))
+        block = np.linalg.inv(a @ a.T + n_soft * np.eye(n_soft))  # SPD compliance
+        dense = [(np.array([0, n_soft]), n_rigid + np.arange(n_soft), block.ravel())]
+    comp = Compliance.build(n, diagonals, dense)
+    per_row = min(4, n)
+    dof = np.full((nc, MAX_DOFS), -1, np.int64)
+    hn, ht = np.zeros((nc, MAX_DOFS)), np.zeros((nc, MAX_DOFS))
+    for c in range(nc):
+        dof[c, :per_row] = rng.choice(n, per_row, replace=False)
+        hn[c, :per_row] = rng.normal(size=per_row)
+        ht[c, :per_row] = rng.normal(size=per_row)
+    W = np.empty((nc, 2, 2))
+    delassus_blocks(dof, hn, ht, *comp.arrays(), W)
+    mu = np.where(rng.random(nc) < 0.2, 0.0, rng.uniform(0.0, friction, nc))
+    v0 = rng.normal(size=n)
+    gap_term = -np.einsum("ck,ck->c", hn, np.where(dof >= 0, v0[dof], 0.0)) + rng.uniform(0.0, 1.0, nc)
+    return ContactProblem(dof, hn, ht, W, comp, v0 + rng.normal(size=n), gap_term, mu, np.zeros((nc, 2)))
+
+
+def dense_form(p: ContactProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(C (n, n) compliance, H (n, 2 nc) columns n0, t0, n1, t1, ..., W = Hᵀ C H, b = Hᵀ v_free +
+    (gap_term, 0)) of a problem."""
+    n, nc = len(p.v_free), len(p)
+    C = np.diag(p.compliance.diagonal).astype(float)
+    st, dofs, off, vals = p.compliance.start, p.compliance.dofs, p.compliance.offset, p.compliance.values
+    for k in range(len(st) - 1):
+        d = dofs[st[k]:st[k + 1]]
+        C[np.ix_(d, d)] = vals[off[k]:off[k + 1]].reshape(len(d), len(d))
+    H = np.zeros((n, 2 * nc))
+    for c in range(nc):
+        for k in np.flatnonzero(p.dof[c] >= 0):
+            H[p.dof[c, k], 2 * c] += p.hn[c, k]
+            H[p.dof[c, k], 2 * c + 1] += p.ht[c, k]
+    b = H.T @ p.v_free
+    b[0::2] += p.gap_term
+    return C, H, H.T @ C @ H, b
