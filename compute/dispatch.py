@@ -21,8 +21,10 @@ The task starts a child process ``python -m compute.dispatch SCENE OUT`` and wai
   benchmarks/results/threads.md);
 - its stdout and stderr are appended to ``OUT/compute.log``.
 
-Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE), ``skipped``
-(OUT/COMPLETE was already there), ``failed`` (OUT/FAILED holds the diagnosis: a numerical failure
+Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE), ``incomplete``
+(the child finished the loading program but wrote OUT/INCOMPLETE: some stage not equilibrated or
+some contact solve above its tolerance, :mod:`compute.summary`), ``skipped`` (OUT/COMPLETE or
+OUT/INCOMPLETE was already there: the run is finished), ``failed`` (OUT/FAILED holds the diagnosis: a numerical failure
 written by compute, or a scene error / exception written here with the log's tail), ``killed``
 (the child died by a signal: nothing is marked, the next dispatch resumes it), ``lost`` (the
 Dask task itself failed, e.g. its worker died repeatedly). A run that fails never stops the
@@ -75,10 +77,13 @@ class RunResult:
 
 
 def run_status(out: str | Path) -> str:
-    """``complete``, ``failed``, ``partial`` (a checkpoint, no marker) or ``new``, from the files."""
+    """``complete``, ``incomplete``, ``failed``, ``partial`` (a checkpoint, no marker) or ``new``,
+    from the files."""
     out = Path(out)
     if (out / "COMPLETE").is_file():
         return "complete"
+    if (out / "INCOMPLETE").is_file():
+        return "incomplete"
     if (out / "FAILED").is_file():
         return "failed"
     if (out / "checkpoint" / "state.npz").is_file():
@@ -99,8 +104,8 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
     Returns the fields of :class:`RunResult` but ``name`` as a dict (plain data for Dask)."""
     scene, out = Path(scene).resolve(), Path(out).resolve()
     status = run_status(out)
-    if status == "complete":
-        return {"status": "skipped", "message": "COMPLETE exists"}
+    if status in ("complete", "incomplete"):
+        return {"status": "skipped", "message": f"{status.upper()} exists"}
     if status == "failed" and not retry_failed:
         return {"status": "failed", "message": "not retried (FAILED exists): " + _tail(out / "FAILED", 3).strip()}
     out.mkdir(parents=True, exist_ok=True)
@@ -128,8 +133,10 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
         if not (out / "FAILED").is_file():  # compute writes FAILED on numerical failures only
             (out / "FAILED").write_text(f"run process exited with code {code}; end of {LOG}:\n{_tail(out / LOG)}")
         message = _tail(out / "FAILED", 5).strip()
+    elif status == "complete" and (out / "INCOMPLETE").is_file():
+        status, message = "incomplete", _tail(out / "INCOMPLETE", 5).strip()
     elif status == "complete" and not (out / "COMPLETE").is_file():
-        status, message = "failed", "run process exited normally without writing COMPLETE"
+        status, message = "failed", "run process exited normally without writing COMPLETE or INCOMPLETE"
         (out / "FAILED").write_text(message + "\n")
     return {"status": status, "wall_time": wall, "resumed": resumed, "message": message}
 
@@ -179,8 +186,8 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
     todo = []
     for r in runs:
         status = run_status(r.out)
-        if status == "complete":
-            record(RunResult(r.name, "skipped", message="COMPLETE exists"))
+        if status in ("complete", "incomplete"):
+            record(RunResult(r.name, "skipped", message=f"{status.upper()} exists"))
         elif status == "failed" and not retry_failed:
             record(RunResult(r.name, "failed", message="not retried (FAILED exists; use retry_failed)"))
         else:
@@ -260,8 +267,8 @@ def _child(argv: list[str] | None = None) -> int:
             print(f"{out} is locked by another process: waiting for it", flush=True)
             fcntl.flock(lock, fcntl.LOCK_EX)
         status = run_status(out)
-        if status == "complete":
-            print("COMPLETE exists: nothing to do", flush=True)
+        if status in ("complete", "incomplete"):
+            print(f"{status.upper()} exists: nothing to do", flush=True)
             return CHILD_ALREADY_COMPLETE
         if status == "failed":
             if not a.retry_failed:

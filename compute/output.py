@@ -18,7 +18,7 @@ FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibr
                  "xmin", "xmax", "ymin", "ymax"]
 HISTORY_COLUMNS = ["time", "step", "stage", "pressure_applied", "xmin", "xmax", "ymin", "ymax", "phi",
                    "nlgs_sweeps", "nlgs_residual", "kinetic_energy", "inertial_number", "n_contacts",
-                   "max_penetration"]
+                   "max_penetration", "newton_iterations", "cuts", "load_halvings"]
 SERIES = ("bodies", "contacts", "walls")
 
 

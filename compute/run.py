@@ -17,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from compute import output
+from compute import output, summary
 from compute.errors import SimulationError
 from compute.model import Model
 from compute.scene import read_scene
 from compute.state import State
+from compute.stepping import load_control
 from compute.stepping.moreau_jean import Stepper
 from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
@@ -49,7 +50,8 @@ class Run:
         if resume and ckpt.is_file():
             with np.load(ckpt) as data:
                 state = State.from_arrays(dict(data))
-            (self.out / "COMPLETE").unlink(missing_ok=True)
+            for name in summary.MARKERS:
+                (self.out / name).unlink(missing_ok=True)
             rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
             for f in (self.out / "frames").glob("*.vtu"):
                 if int(f.stem.rsplit("_", 1)[1]) >= state.frame:
@@ -62,7 +64,7 @@ class Run:
             self.log(f"no checkpoint in {self.out}: starting from the scene")
         for f in (self.out / "frames").glob("*.vtu"):
             f.unlink()
-        for name in ("frames.csv", CHECKPOINT, "FAILED", "COMPLETE"):
+        for name in ("frames.csv", CHECKPOINT, "FAILED", "summary.json", *summary.MARKERS):
             (self.out / name).unlink(missing_ok=True)
         shutil.copy(self.scene.path / "scene.toml", self.out / "scene.toml")
         output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, [])
@@ -78,7 +80,9 @@ class Run:
                 while self.state.stage < len(self.scene.loading.pressures):
                     self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
-            (self.out / "COMPLETE").write_text(f"{self.state.step} steps, {self.state.frame} frames\n")
+            done = summary.finish(self.out, self.scene)
+            if done["status"] != "complete":
+                self.log("WARNING: run INCOMPLETE: " + summary.incomplete_reasons(done).replace("\n", "; "))
         except SimulationError as exc:
             self.history.flush()
             (self.out / "FAILED").write_text(f"{exc}\n")
@@ -90,34 +94,38 @@ class Run:
 
     def _pressure_stage(self, pressure: float) -> None:
         load, st = self.scene.loading, self.state
+        previous = load.pressures[st.stage - 1] if st.stage else 0.0
         while True:
-            self._advance(pressure)
-            if st.stage_steps % load.check_every == 0 and self._equilibrated(pressure):
+            rep, applied, halvings = load_control.controlled_step(self.stepper, st, previous, pressure, self.log)
+            self._record(rep, applied, halvings)
+            ramped = st.load_fraction >= 1.0
+            if ramped and st.stage_steps % load.check_every == 0 and self._equilibrated(pressure):
                 self.write_frame(pressure, equilibrated=True)
                 self.log(f"stage {st.stage} (P = {pressure:.4g}) equilibrated at step {st.step}: "
                          f"phi = {self.model.phi(st.q):.6f}")
                 break
             if st.stage_steps >= load.max_steps_per_stage:
-                self.write_frame(pressure, equilibrated=False)
+                self.write_frame(applied, equilibrated=False)
                 self.log(f"stage {st.stage} (P = {pressure:.4g}) NOT equilibrated after "
                          f"{st.stage_steps} steps; frame written with equilibrated = 0")
                 break
         st.stage += 1
         st.stage_steps = 0
         st.phi_check = np.nan
+        load_control.start_stage(st)
         self.checkpoint()
 
     def _velocity_stage(self) -> None:
         load, st = self.scene.loading, self.state
         n = int(round(load.duration / self.scene.solver.time_step))
         while st.stage_steps < n:
-            self._advance(0.0, load.velocity)
+            self._record(self.stepper.step(st, 0.0, load.velocity), 0.0, 0)
         self.write_frame(0.0, equilibrated=False)
         st.stage = 1
 
-    def _advance(self, pressure: float, wall_speed: float = 0.0) -> None:
+    def _record(self, rep, pressure: float, halvings: int) -> None:
+        """History row, frames and checkpoints after an accepted step."""
         st = self.state
-        rep = self.stepper.step(st, pressure, wall_speed)
         self.last_contacts = rep.contacts
         st.stage_steps += 1
         b = self.model.bounds(st.q)
@@ -126,7 +134,8 @@ class Run:
             xmin=b[0], xmax=b[1], ymin=b[2], ymax=b[3], phi=self.model.phi(st.q), nlgs_sweeps=rep.sweeps,
             nlgs_residual=rep.residual, kinetic_energy=self.model.kinetic_energy(st.v),
             inertial_number=self._inertial(pressure), n_contacts=rep.n_contacts,
-            max_penetration=rep.max_penetration))
+            max_penetration=rep.max_penetration, newton_iterations=rep.newton_iterations, cuts=rep.cuts,
+            load_halvings=halvings))
         out = self.scene.output
         if out.every_steps and st.step % out.every_steps == 0:
             self.write_frame(pressure, equilibrated=False)

@@ -16,7 +16,9 @@ class State:
     """Everything a step reads and writes; a checkpoint saves exactly this.
 
     ``q``, ``v`` (n_dofs,); ``stage`` index into the loading program; ``stage_steps`` steps
-    done in the current stage; ``phi_check`` φ at the last equilibrium check; ``frame`` the
+    done in the current stage; ``phi_check`` φ at the last equilibrium check; the stage's load
+    ramp (:mod:`compute.stepping.load_control`): ``load_fraction`` λ applied, ``load_increment``
+    Δλ of the next step, ``load_accepted`` steps accepted at that increment; ``frame`` the
     number of frames written; the contact memory (Verlet list and last impulses) is kept in
     ``pairs``/``impulses`` per contact family and ``q_detect`` (positions at detection).
     """
@@ -29,13 +31,17 @@ class State:
     stage_steps: int = 0
     phi_check: float = np.nan
     frame: int = 0
+    load_fraction: float = 0.0
+    load_increment: float = 1.0
+    load_accepted: int = 0
     q_detect: np.ndarray | None = None
     pairs: dict[str, np.ndarray] = field(default_factory=dict)
     impulses: dict[str, np.ndarray] = field(default_factory=dict)
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"q": self.q, "v": self.v,
-               "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.phi_check, self.frame])}
+               "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.phi_check, self.frame]),
+               "load": np.array([self.load_fraction, self.load_increment, self.load_accepted])}
         if self.q_detect is not None:
             out["q_detect"] = self.q_detect
         for k, a in self.pairs.items():
@@ -47,8 +53,11 @@ class State:
     def from_arrays(cls, a: dict[str, np.ndarray]) -> "State":
         t, step, stage, stage_steps, phi_check, frame = a["scalars"]
         families = [k[len("pairs_"):] for k in a if k.startswith("pairs_")]
+        # checkpoints written before load ramps applied each stage's load at once: λ = 1
+        fraction, increment, accepted = a["load"] if "load" in a else (1.0, 1.0, 0)
         return cls(q=a["q"].copy(), v=a["v"].copy(), time=float(t), step=int(step), stage=int(stage),
                    stage_steps=int(stage_steps), phi_check=float(phi_check), frame=int(frame),
+                   load_fraction=float(fraction), load_increment=float(increment), load_accepted=int(accepted),
                    q_detect=a["q_detect"].copy() if "q_detect" in a else None,
                    pairs={k: a["pairs_" + k].copy() for k in families},
                    impulses={k: a["impulses_" + k].copy() for k in families})

@@ -51,10 +51,8 @@ def _cut(attempt, state, h_nominal, h, depth, max_cuts, step_index, stats):
         return attempt(state, h)
     except StepFailure as exc:
         if depth >= max_cuts:
-            raise SimulationError(f"step {step_index + 1}: {exc}; the step was cut {depth} times "
-                                  f"(h = {h_nominal:.4g} -> {h:.4g}) without success: the load increment "
-                                  f"or the time step is too large for this mesh (add intermediate pressure "
-                                  f"stages or lower solver.time_step)") from None
+            cut = f"; the step was cut {depth} times (h = {h_nominal:.4g} -> {h:.4g}) without success" if depth else ""
+            raise SimulationError(f"step {step_index + 1}: {exc}{cut}") from None
         restore(state, snap)
         stats["cuts"] += 1
         first = _cut(attempt, state, h_nominal, 0.5 * h, depth + 1, max_cuts, step_index, stats)

@@ -38,6 +38,8 @@ import os  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from compute.dispatch import run_status  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[2]
 SINGLE_PARTICLE_CANDIDATES = ("studies/single_particle/results/refinement_fits.csv",
                               "studies/single_particle/results/fit.json")
@@ -126,7 +128,7 @@ def measure_runs(w: Path, study: dict, threshold: float) -> dict:
             print(f"  {run['name']}: unreadable output, left out ({exc})", flush=True)
             continue
         write_measures(rows, out / "post" / "measures.csv")
-        status = "complete" if (out / "COMPLETE").is_file() else "FAILED" if (out / "FAILED").is_file() else "partial"
+        status = run_status(out)
         print(f"  {run['name']}: {len(rows)} frames ({status})", flush=True)
         tables[run["name"]] = rows
     return tables
@@ -424,7 +426,7 @@ def run_times(w: Path) -> dict:
     if log.is_file():
         for line in log.read_text().splitlines():
             entry = json.loads(line)
-            if entry["status"] in ("complete", "killed", "failed"):
+            if entry["status"] in ("complete", "incomplete", "killed", "failed"):
                 times[entry["name"]] = times.get(entry["name"], 0.0) + entry.get("wall_time", 0.0)
     return times
 
@@ -464,6 +466,14 @@ def summary_markdown(w: Path, study: dict, result: dict) -> str:
               f"| b | {law['b']:.3g}{' (the paper’s value, not measured)' if law['paper_default'] else ''} | {PAPER_B} |", ""]
     total = sum(times.values())
     lines.append(f"Compute wall time summed over runs: {total:.0f} s; pre: {study.get('pre_seconds', float('nan'))} s.")
+    unfinished = [(r["name"], run_status(w / r["out"])) for r in study["runs"]]
+    unfinished = [(name, st) for name, st in unfinished if st != "complete"]
+    if unfinished:
+        lines += ["", "Runs not COMPLETE (their numbers above are not what their scenes asked for):"]
+        for name, st in unfinished:
+            reason = next((w / r["out"] / st.upper() for r in study["runs"] if r["name"] == name), None)
+            detail = reason.read_text().strip().replace("\n", "; ") if reason is not None and reason.is_file() else ""
+            lines.append(f"- {name}: {st}" + (f" ({detail})" if detail else ""))
     if result["notes"]:
         lines += ["", "Notes:"] + [f"- {n}" for n in result["notes"]]
     return "\n".join(lines) + "\n"

@@ -1,6 +1,7 @@
-"""Stability: a time step ten times too large, a pressure jump to P/E = 2, an element about to
-invert: never a silent NaN. The stepper cuts the step (h/2, h/4, ...) or the run stops with a
-diagnosis (step, body, elements) and what was written stays readable by post."""
+"""Stability: a time step ten times too large, pressure jumps to P/E = 2 and 5, an element about
+to invert: never a silent NaN. The load control splits the load increment, the stepper cuts the
+step (h/2, h/4, ...), or the run stops with a diagnosis (stage, increment, step, body, elements)
+and what was written stays readable by post."""
 
 import numpy as np
 import pytest
@@ -36,23 +37,59 @@ def test_time_step_ten_times_too_large(tmp_path):
     assert 0.9 < rows[-1]["phi"] < 0.92
 
 
-def test_pressure_jump_to_two_stops_with_a_diagnosis(tmp_path):
-    """P/E = 1e-3, then straight to 2: the first stage is written; the jump cannot be taken even
-    with h/16 (the walls hit the disk with a load of twice its Young modulus), so the run stops
-    naming the step, the body and the elements; FAILED is written and frame 0 stays readable."""
+def equilibrium(tmp_path, name, pressures):
+    """The measures (post.table) of the last equilibrated stage of the single particle run
+    through ``pressures``, and the run's history rows."""
+    from post.table import measure_output
+
     pre = scenes.study_module("pre")
-    pre.write(tmp_path / "scene", pressures=[1e-3, 2.0])
+    pre.write(tmp_path / name / "scene", pressures=pressures)
+    Run(tmp_path / name / "scene", tmp_path / name / "out", log=lambda m: None).execute()
+    assert (tmp_path / name / "out" / "COMPLETE").is_file()
+    rows = measure_output(tmp_path / name / "out", min_contacts=1)
+    assert all(r["equilibrated"] for r in rows)
+    return rows[-1], finite_history(tmp_path / name / "out")
+
+
+@pytest.mark.parametrize("target", [0.4, 2.0])
+def test_pressure_jump_is_taken_by_load_increments(tmp_path, target):
+    """P/E = 1e-3, then straight to 0.4 (taken by cutting h) or 2 (twice the Young modulus at
+    once: cutting h four times fails, the jump is split into load increments that climb
+    monotonically to the target); the stage ends in an equilibrium: the pressure from the contact
+    forces (granular stress) equals the applied one.
+    At 0.4 the disk's area equals that of a program climbing there through four stages (the
+    nearly incompressible disk's area follows from its mean stress; its shape need not: the
+    two paths end with the corners filled differently, φ 0.9875 and 0.9810, both equilibria);
+    at 2 this mesh's φ is meaningless (corner nodes pressed past the walls)."""
+    jump, rows = equilibrium(tmp_path, "jump", [1e-3, target])
+    assert jump["P"] == pytest.approx(target, rel=1e-5) and jump["P_walls"] == pytest.approx(target, rel=1e-5)
+    if target < 1.0:
+        path, _ = equilibrium(tmp_path, "path", [1e-3, 0.01, 0.05, 0.15, target])
+        assert jump["phi"] * jump["volume"] == pytest.approx(path["phi"] * path["volume"], rel=2e-4)
+    stage1 = [r for r in rows if r["stage"] == "1"]
+    applied = [float(r["pressure_applied"]) for r in stage1]
+    assert applied == sorted(applied) and applied[-1] == target
+    if target > 1.0:
+        assert sum(int(r["load_halvings"]) for r in stage1) > 0 and 1e-3 < applied[0] < target
+
+
+def test_pressure_jump_to_five_is_taken_or_stopped_with_a_diagnosis(tmp_path):
+    """P/E = 0.01 straight to 5: either load increments reach it, or the run stops naming the
+    stage, the load increment and the body; never a NaN, and what was written stays readable."""
+    pre = scenes.study_module("pre")
+    pre.write(tmp_path / "scene", pressures=[0.01, 5.0])
     run = Run(tmp_path / "scene", tmp_path / "out", log=lambda m: None)
-    with pytest.raises(SimulationError) as err:
+    try:
         run.execute()
-    msg = str(err.value)
-    assert "body 0" in msg and "element" in msg and "step" in msg and "cut 4 times" in msg
-    assert (tmp_path / "out" / "FAILED").read_text().strip() == msg
+    except SimulationError as exc:
+        msg = str(exc)
+        assert "stage 1 (P = 5)" in msg and "load increment" in msg and "body 0" in msg
+        assert (tmp_path / "out" / "FAILED").read_text().strip() == msg
     finite_history(tmp_path / "out")
     from post.table import measure_output
 
     rows = measure_output(tmp_path / "out", min_contacts=1)
-    assert len(rows) == 1 and rows[0]["equilibrated"] and np.isfinite(rows[0]["phi"])
+    assert rows[0]["equilibrated"] and all(np.isfinite(r["phi"]) for r in rows)
 
 
 def kicked(tmp_path, speed):

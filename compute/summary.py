@@ -1,0 +1,85 @@
+"""The end of a run: ``summary.json`` and the status marker, from the output folder itself.
+
+A run that went through its whole loading program ends
+
+- ``COMPLETE`` when every pressure stage was equilibrated and every step's contact solve reached
+  its tolerance;
+- ``INCOMPLETE`` otherwise: the file lists the stages ended by ``max_steps_per_stage`` and the
+  number of steps whose contact solve stopped above its tolerance (the frames and history are
+  all there, but some numbers are not what the scene asked for).
+
+Both are derived from ``history.csv`` and ``frames.csv``, so a resumed run counts its steps from
+before the resume too. ``summary.json``: per stage its target pressure, steps, whether it was
+equilibrated, Newton iterations, cuts, load-increment halvings, contact misses and the largest
+contact residual; and the totals.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from compute import output
+
+MARKERS = ("COMPLETE", "INCOMPLETE")
+
+
+def run_summary(out: Path, scene) -> dict:
+    """The summary (module docstring) of the run in ``out`` of ``scene``."""
+    tol = scene.solver.nlgs_tolerance
+    history = output.read_csv_rows(out / "history.csv")
+    frames = output.read_csv_rows(out / "frames.csv")
+    pressure_control = scene.walls.control == "pressure"
+    stages = []
+    n_stages = len(scene.loading.pressures) if pressure_control else 1
+    for s in range(n_stages):
+        rows = [r for r in history if int(r["stage"]) == s]
+        last = [f for f in frames if int(f["stage"]) == s]
+        residuals = [float(r["nlgs_residual"]) for r in rows]
+        stages.append({
+            "stage": s,
+            "pressure": scene.loading.pressures[s] if pressure_control else None,
+            "steps": len(rows),
+            "equilibrated": bool(last) and last[-1]["equilibrated"] == "1",
+            "newton_iterations": sum(int(r["newton_iterations"]) for r in rows),
+            "cuts": sum(int(r["cuts"]) for r in rows),
+            "load_halvings": sum(int(r["load_halvings"]) for r in rows),
+            "contact_misses": sum(x > tol for x in residuals),
+            "max_contact_residual": max(residuals, default=0.0),
+        })
+    not_equilibrated = [s["stage"] for s in stages if pressure_control and not s["equilibrated"]]
+    misses = sum(s["contact_misses"] for s in stages)
+    return {
+        "status": "complete" if not not_equilibrated and not misses else "incomplete",
+        "steps": len(history),
+        "contact_tolerance": tol,
+        "stages_not_equilibrated": not_equilibrated,
+        "contact_misses": misses,
+        "stages": stages,
+    }
+
+
+def finish(out: Path, scene) -> dict:
+    """Write ``summary.json`` and COMPLETE or INCOMPLETE (removing the other); return the summary."""
+    summary = run_summary(out, scene)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    for name in MARKERS:
+        (out / name).unlink(missing_ok=True)
+    steps = f"{summary['steps']} steps, {sum(1 for _ in output.read_csv_rows(out / 'frames.csv'))} frames\n"
+    if summary["status"] == "complete":
+        (out / "COMPLETE").write_text(steps)
+    else:
+        (out / "INCOMPLETE").write_text(steps + incomplete_reasons(summary) + "\n")
+    return summary
+
+
+def incomplete_reasons(summary: dict) -> str:
+    """One line per reason why a finished run is not COMPLETE."""
+    lines = []
+    if summary["stages_not_equilibrated"]:
+        lines.append(f"stages not equilibrated within max_steps_per_stage: {summary['stages_not_equilibrated']}")
+    if summary["contact_misses"]:
+        worst = max(s["max_contact_residual"] for s in summary["stages"])
+        lines.append(f"{summary['contact_misses']} of {summary['steps']} steps ended with a contact residual above "
+                     f"solver.nlgs_tolerance = {summary['contact_tolerance']:g} (largest {worst:.3g})")
+    return "\n".join(lines)
