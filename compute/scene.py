@@ -63,7 +63,8 @@ class Loading:
 
 @dataclass(frozen=True)
 class Solver:
-    """Time-stepping and NLGS settings."""
+    """Time-stepping and contact-solver settings (``nlgs_tolerance`` and ``nlgs_max_sweeps`` hold
+    for whichever contact solver ``contact`` chooses)."""
 
     time_step: float
     theta: float
@@ -73,6 +74,7 @@ class Solver:
     skin: float
     newton_tolerance: float = 1e-8
     newton_max_iterations: int = 20
+    contact: str = "auto"  # contact solver: "auto", "nlgs" or "block" (compute.solvers.for_scene)
 
 
 @dataclass(frozen=True)
@@ -290,6 +292,8 @@ def _read_solver(r: _Reader) -> Solver:
         extra["newton_tolerance"] = float(r.number(tab, "newton_tolerance", p, low=0.0, strict_low=True))
     if "newton_max_iterations" in tab:
         extra["newton_max_iterations"] = int(r.number(tab, "newton_max_iterations", p, low=1, integer=True))
+    if "contact" in tab:
+        extra["contact"] = r.choice(tab, "contact", p, ("auto", "nlgs", "block"))
     return Solver(
         time_step=float(r.number(tab, "time_step", p, low=0.0, strict_low=True)),
         theta=float(r.number(tab, "theta", p, low=0.5, high=1.0)),

@@ -25,7 +25,7 @@ from compute.bodies import Load
 from compute.contact import detection
 from compute.contact.rows import Contacts
 from compute.errors import SimulationError, StepFailure
-from compute.solvers.nlgs import NLGS
+from compute import solvers
 from compute.stepping import control
 from compute.stepping.newton import solve_step
 from compute.timing import TIMES
@@ -53,7 +53,8 @@ class Stepper:
         s = model.scene.solver
         self.model = model
         self.h, self.theta = s.time_step, s.theta
-        self.solver = solver or NLGS(s.nlgs_tolerance, s.nlgs_max_sweeps, s.relaxation)
+        self.solver = solver or solvers.for_scene(s, sum(len(g) for g in model.soft),
+                                                  int(np.count_nonzero(~model.rigid.fixed)))
         self.newton_tolerance = s.newton_tolerance * model.diameter
         self.newton_max_iterations = s.newton_max_iterations
         self.gravity = tuple(model.scene.loading.gravity)

@@ -51,6 +51,11 @@ def test_out_of_range_field(scene):
     _expect(scene, "scene.toml", "solver.theta", ">= 0.5")
 
 
+def test_unknown_contact_solver(scene):
+    _edit_toml(scene, r"^theta = (.*)$", r'theta = \1\ncontact = "lemke"')
+    _expect(scene, "scene.toml", "solver.contact", "one of 'auto', 'nlgs', 'block'")
+
+
 def test_unknown_material_kind(scene):
     _edit_toml(scene, r'^kind = "rigid"$', 'kind = "plasticine"')
     _expect(scene, "scene.toml", "materials.rigid.kind", "one of 'rigid', 'neo_hookean'")

@@ -5,12 +5,13 @@ and the natural-map error (compute.solvers.residual) against the oracle's exact 
 import numpy as np
 import pytest
 
+from compute.solvers.block_gs import BlockGS
 from compute.solvers.nlgs import NLGS
 from compute.solvers.residual import natural_map_error
 from tests.solvers.lemke import frictional_lcp, lemke, solve_contact
 from tests.solvers.problems import dense_form, random_problem
 
-SOLVERS = {"nlgs": NLGS(1e-13, 200_000)}
+SOLVERS = {"nlgs": NLGS(1e-13, 200_000), "block": BlockGS(1e-13, 20_000)}
 KINDS = ("rigid", "soft", "mixed")
 
 
@@ -49,8 +50,10 @@ def test_oracle_solutions_satisfy_the_law(kind, seed):
 def test_solver_matches_lemke(solver, kind):
     """On 30 random problems of 8 contacts: every solve that reports convergence agrees with the
     oracle within 1e-10 and reports the error it reached; a solve that does not converge says so
-    (Gauss–Seidel on a frictional problem is not guaranteed to converge: about 1 in 100 of these
-    problems, where W is ill-conditioned); at most 2 of 30 do not."""
+    (point Gauss–Seidel on a frictional problem is not guaranteed to converge: about 1 in 100 of
+    these problems, where W is ill-conditioned); at most 2 of 30 do not. A frictional problem
+    may have several solutions (seen once in 100 soft problems, cond(W) = 1600): a converged
+    answer that differs from the oracle's must then have a zero error recomputed here."""
     missed = 0
     for seed in range(30):
         p = random_problem(np.random.default_rng(100 + seed), kind, 8)
@@ -62,7 +65,8 @@ def test_solver_matches_lemke(solver, kind):
             missed += 1
             continue
         scale = max(np.abs(expected).max(), 1.0)
-        np.testing.assert_allclose(p.impulse, expected, rtol=0, atol=1e-10 * scale)
+        if np.abs(p.impulse - expected).max() > 1e-10 * scale:
+            assert error_of(p, p.impulse) < 1e-12 and error_of(p, expected) < 1e-12, "a wrong answer"
     assert missed <= 2
 
 
@@ -110,3 +114,16 @@ def test_open_frictionless_contact_without_tangent_row_has_no_error():
 
     assert local_error(5.0, 0.2, 0.0, 0.0, 0.0, 0.0) == (0.0, 0.0)
     assert local_error(5.0, -0.2, 0.0, 0.0, 0.0, 0.0)[0] == pytest.approx(-0.04)  # closing, r = 0: -ρ ũ_n
+
+
+def test_auto_choice():
+    """block for one soft body alone in its walls, nlgs otherwise (compute.solvers docstring)."""
+    from types import SimpleNamespace
+
+    from compute.solvers import for_scene
+
+    settings = SimpleNamespace(contact="auto", nlgs_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0)
+    assert isinstance(for_scene(settings, 1, 0), BlockGS)
+    assert isinstance(for_scene(settings, 1, 3), NLGS) and isinstance(for_scene(settings, 72, 72), NLGS)
+    assert isinstance(for_scene(settings, 0, 100), NLGS)
+    assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)

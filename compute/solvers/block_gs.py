@@ -1,0 +1,289 @@
+r"""Block Gauss–Seidel: the contacts of one dense compliance block (one soft body) solved exactly
+together, by a semismooth Newton method on the Alart–Curnier function; Gauss–Seidel over these
+blocks and the remaining single contacts (rigid bodies, walls).
+
+Why: the contacts of one soft body are coupled through its compliance M̂_b⁻¹, strongly: the
+point Gauss–Seidel of :mod:`compute.solvers.nlgs` contracts by only 0.96–0.985 per sweep there
+(300–1200 sweeps to 1e-8), while a Newton method on the block converges in a few iterations.
+
+Blocks: a contact belongs to the dense compliance block of the first of its dofs that lies in
+one (the node side of a node–segment contact); contacts without such a dof are single blocks,
+solved by the exact local 2D solution of the NLGS. For block B with k contacts,
+u_B = W_BB r_B + b_B, W_BB (2k, 2k) = H_Bᵀ M̂⁻¹ H_B (all dofs of its contacts, other bodies'
+included), b_B the local velocities of the other impulses.
+
+Alart–Curnier, per contact (ρ = 1 / W_nn, τ_n = r_n - ρ ũ_n, τ_t = r_t - ρ u_t):
+
+    Φ_n = r_n - max(0, τ_n),     Φ_t = r_t - proj_[-μ max(0, τ_n), μ max(0, τ_n)](τ_t),
+
+Φ = 0 exactly at a solution of the Signorini–Coulomb law. Newton steps on the generalised
+Jacobian (open: Φ = r; closed: Φ_n = ρ ũ_n; stick: Φ_t = ρ u_t; slip: Φ_t = r_t - μ τ_n sgn τ_t;
+frictionless: Φ_t = r_t), with a backtracking line search on |Φ|² (least squares where the
+Jacobian is singular: redundant contacts). A block the Newton method does not settle in
+``BLOCK_ITERATIONS`` falls back to point Gauss–Seidel sweeps on its contacts.
+
+Stopping: the natural-map error of all contacts (:mod:`compute.solvers.residual`) at most
+``tolerance``, checked after every sweep.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from compute.contact.compliance import add_compliance
+from compute.solvers import SolveReport
+from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
+from compute.solvers.residual import local_error, natural_map_error
+
+BLOCK_ITERATIONS = 30
+FALLBACK_SWEEPS = 200
+
+
+@dataclass(frozen=True)
+class BlockGS:
+    """Block Gauss–Seidel (module docstring): stops when the natural-map error is at most
+    ``tolerance`` or after ``max_sweeps`` sweeps over the blocks."""
+
+    tolerance: float
+    max_sweeps: int
+
+    def solve(self, problem) -> SolveReport:
+        """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
+        carr = problem.compliance.arrays()
+        order, bstart = blocks_of(problem.dof, problem.compliance.block)
+        wb, woff = block_delassus(order, bstart, problem.dof, problem.hn, problem.ht, *carr)
+        v = problem.v_free.copy()
+        apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
+        sweeps, error = block_gs_solve(order, bstart, wb, woff, problem.dof, problem.hn, problem.ht, problem.W,
+                                       problem.gap_term, problem.mu, problem.impulse, v, *carr, self.tolerance,
+                                       self.max_sweeps)
+        return SolveReport(v, sweeps, error)
+
+
+def blocks_of(dof: np.ndarray, block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Contacts grouped by block: ``order`` (nc,) contact indices, block after block, and
+    ``bstart`` (n_blocks + 1,) offsets into it. A contact's block is the dense compliance block
+    of its first dof in one (``block`` (n_dofs,), -1: none); others are blocks of one."""
+    nc = dof.shape[0]
+    if nc == 0:
+        return np.zeros(0, np.int64), np.zeros(1, np.int64)
+    b = np.where(dof >= 0, block[np.maximum(dof, 0)], -1)  # (nc, m)
+    has = b >= 0
+    first = np.where(has.any(axis=1), b[np.arange(nc), np.argmax(has, axis=1)], -1)
+    key = np.where(first >= 0, first, first.max(initial=-1) + 1 + np.arange(nc))  # singletons last, own keys
+    order = np.argsort(key, kind="stable").astype(np.int64)
+    ks = key[order]
+    bstart = np.concatenate([[0], np.flatnonzero(np.diff(ks)) + 1, [nc]]).astype(np.int64)
+    return order, bstart
+
+
+@numba.njit(cache=True)
+def _entry(dk, dl, diagonal, block, pos, start, offset, values):
+    """M̂⁻¹[dk, dl] of the block-diagonal compliance."""
+    bk = block[dk]
+    if bk < 0:
+        return diagonal[dk] if dk == dl else 0.0
+    if block[dl] != bk:
+        return 0.0
+    size = start[bk + 1] - start[bk]
+    return values[offset[bk] + pos[dk] * size + pos[dl]]
+
+
+@numba.njit(cache=True)
+def block_delassus(order, bstart, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values):
+    """Dense W_BB of every block, row-major (2k, 2k) with rows n0, t0, n1, t1, ..., concatenated:
+    (values, offsets (n_blocks + 1,))."""
+    nb = bstart.shape[0] - 1
+    woff = np.zeros(nb + 1, np.int64)
+    for B in range(nb):
+        k = bstart[B + 1] - bstart[B]
+        woff[B + 1] = woff[B] + 4 * k * k
+    wb = np.zeros(woff[nb])
+    m = dof.shape[1]
+    for B in range(nb):
+        k = bstart[B + 1] - bstart[B]
+        n2 = 2 * k
+        for i in range(k):
+            c = order[bstart[B] + i]
+            for j in range(i, k):
+                d = order[bstart[B] + j]
+                nn = nt = tn = tt = 0.0
+                for a in range(m):
+                    da = dof[c, a]
+                    if da < 0:
+                        continue
+                    for e in range(m):
+                        de = dof[d, e]
+                        if de < 0:
+                            continue
+                        w = _entry(da, de, diagonal, block, pos, start, offset, values)
+                        if w != 0.0:
+                            nn += hn[c, a] * w * hn[d, e]
+                            nt += hn[c, a] * w * ht[d, e]
+                            tn += ht[c, a] * w * hn[d, e]
+                            tt += ht[c, a] * w * ht[d, e]
+                o = woff[B]
+                wb[o + (2 * i) * n2 + 2 * j] = nn
+                wb[o + (2 * i) * n2 + 2 * j + 1] = nt
+                wb[o + (2 * i + 1) * n2 + 2 * j] = tn
+                wb[o + (2 * i + 1) * n2 + 2 * j + 1] = tt
+                wb[o + (2 * j) * n2 + 2 * i] = nn
+                wb[o + (2 * j + 1) * n2 + 2 * i] = nt
+                wb[o + (2 * j) * n2 + 2 * i + 1] = tn
+                wb[o + (2 * j + 1) * n2 + 2 * i + 1] = tt
+    return wb, woff
+
+
+@numba.njit(cache=True)
+def _phi_and_jacobian(W, b, mu, r, phi, J):
+    """Alart–Curnier Φ (2k,) and a generalised Jacobian J (2k, 2k) at r (2k,), u = W r + b.
+    Returns |Φ|²."""
+    n2 = r.shape[0]
+    u = W @ r + b
+    J[:, :] = 0.0
+    total = 0.0
+    for c in range(n2 // 2):
+        i, t = 2 * c, 2 * c + 1
+        rho = 1.0 / W[i, i] if W[i, i] > 0.0 else 1.0
+        tau_n = r[i] - rho * u[i]
+        tau_t = r[t] - rho * u[t]
+        if tau_n <= 0.0:  # open
+            phi[i], phi[t] = r[i], r[t]
+            J[i, i] = 1.0
+            J[t, t] = 1.0
+        else:
+            phi[i] = rho * u[i]
+            J[i, :] = rho * W[i, :]
+            bound = mu[c] * tau_n
+            if mu[c] == 0.0:  # frictionless: r_t = 0 (its row of W may be zero, node–wall)
+                phi[t] = r[t]
+                J[t, t] = 1.0
+            elif abs(tau_t) <= bound:  # stick
+                phi[t] = rho * u[t]
+                J[t, :] = rho * W[t, :]
+            else:  # slip
+                s = 1.0 if tau_t > 0.0 else -1.0
+                phi[t] = r[t] - s * bound
+                J[t, :] = s * mu[c] * rho * W[i, :]
+                J[t, t] += 1.0
+                J[t, i] -= s * mu[c]
+        total += phi[i] * phi[i] + phi[t] * phi[t]
+    return total
+
+
+@numba.njit(cache=True)
+def _block_error(W, b, mu, r):
+    """Natural-map error ‖f‖ / ‖r‖ of the block alone."""
+    u = W @ r + b
+    num = 0.0
+    den = 0.0
+    for c in range(r.shape[0] // 2):
+        fn, ft = local_error(W[2 * c, 2 * c], u[2 * c], u[2 * c + 1], r[2 * c], r[2 * c + 1], mu[c])
+        num += fn * fn + ft * ft
+        den += r[2 * c] ** 2 + r[2 * c + 1] ** 2
+    if num == 0.0:
+        return 0.0
+    return np.sqrt(num / den) if den > 0.0 else np.inf
+
+
+@numba.njit(cache=True)
+def solve_block(W, b, mu, r, tol):
+    """Impulses r (2k,) (in: warm start, out: solution) of u = W r + b with the Signorini–Coulomb
+    law, by semismooth Newton (module docstring), point Gauss–Seidel if that does not settle.
+    Returns the block's natural-map error."""
+    n2 = r.shape[0]
+    phi = np.zeros(n2)
+    J = np.zeros((n2, n2))
+    trial = np.zeros(n2)
+    phi_t = np.zeros(n2)
+    J_t = np.zeros((n2, n2))
+    for _ in range(BLOCK_ITERATIONS):
+        err = _block_error(W, b, mu, r)
+        if err <= tol:
+            return err
+        f0 = _phi_and_jacobian(W, b, mu, r, phi, J)
+        try:
+            step = np.linalg.solve(J, -phi)
+        except Exception:  # singular generalised Jacobian (redundant contacts): least squares
+            step = np.linalg.lstsq(J, -phi, 1e-12)[0]
+        a = 1.0
+        for _ls in range(20):
+            trial[:] = r + a * step
+            if _phi_and_jacobian(W, b, mu, trial, phi_t, J_t) <= (1.0 - 1e-4 * a) * f0:
+                break
+            a *= 0.5
+        r[:] = trial
+    err = _block_error(W, b, mu, r)
+    if err <= tol:
+        return err
+    for _ in range(FALLBACK_SWEEPS):  # point Gauss–Seidel on the block
+        u = W @ r + b
+        for c in range(n2 // 2):
+            i, t = 2 * c, 2 * c + 1
+            un = u[i] - W[i, i] * r[i] - W[i, t] * r[t]
+            ut = u[t] - W[t, i] * r[i] - W[t, t] * r[t]
+            rn, rt = local_signorini_coulomb(W[i, i], W[i, t], W[t, i], W[t, t], un, ut, mu[c])
+            dn, dt = rn - r[i], rt - r[t]
+            r[i], r[t] = rn, rt
+            u += W[:, i] * dn + W[:, t] * dt
+        err = _block_error(W, b, mu, r)
+        if err <= tol:
+            break
+    return err
+
+
+@numba.njit(cache=True)
+def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, dofs,
+                   offset, values, tol, max_sweeps):
+    """Solve the contact problem in place (module docstring); v (n_dofs,) includes the warm
+    start impulses. Returns (sweeps, natural-map error)."""
+    nb = bstart.shape[0] - 1
+    m = dof.shape[1]
+    error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+    if error <= tol:
+        return 0, error
+    for sweep in range(1, max_sweeps + 1):
+        for B in range(nb):
+            k = bstart[B + 1] - bstart[B]
+            n2 = 2 * k
+            Wb = wb[woff[B]:woff[B + 1]].reshape(n2, n2)
+            rb = np.empty(n2)
+            mub = np.empty(k)
+            u = np.empty(n2)
+            for i in range(k):
+                c = order[bstart[B] + i]
+                rb[2 * i], rb[2 * i + 1] = r[c, 0], r[c, 1]
+                mub[i] = mu[c]
+                un = gap_term[c]
+                ut = 0.0
+                for a in range(m):
+                    d = dof[c, a]
+                    if d >= 0:
+                        un += hn[c, a] * v[d]
+                        ut += ht[c, a] * v[d]
+                u[2 * i], u[2 * i + 1] = un, ut
+            bb = u - Wb @ rb
+            r0 = rb.copy()
+            if k == 1:
+                rn, rt = local_signorini_coulomb(Wb[0, 0], Wb[0, 1], Wb[1, 0], Wb[1, 1], bb[0], bb[1], mub[0])
+                rb[0], rb[1] = rn, rt
+            else:
+                solve_block(Wb, bb, mub, rb, 0.1 * tol)
+            for i in range(k):
+                c = order[bstart[B] + i]
+                dn, dt = rb[2 * i] - r0[2 * i], rb[2 * i + 1] - r0[2 * i + 1]
+                if dn == 0.0 and dt == 0.0:
+                    continue
+                r[c, 0], r[c, 1] = rb[2 * i], rb[2 * i + 1]
+                for a in range(m):
+                    d = dof[c, a]
+                    if d >= 0:
+                        add_compliance(v, d, hn[c, a] * dn + ht[c, a] * dt, diagonal, block, pos, start, dofs,
+                                       offset, values)
+        error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+        if error <= tol:
+            return sweep, error
+    return max_sweeps, error
