@@ -23,7 +23,10 @@ Jacobian is singular: redundant contacts). A block the Newton method does not se
 ``BLOCK_ITERATIONS`` falls back to point Gauss–Seidel sweeps on its contacts.
 
 Stopping: the natural-map error of all contacts (:mod:`compute.solvers.residual`) at most
-``tolerance``, checked after every sweep.
+``tolerance``, checked after every sweep. A problem of one block stops after one sweep whatever
+its error (its block solve was the whole solve: repeating a failed one would not help, and each
+costs up to BLOCK_ITERATIONS Newton steps and FALLBACK_SWEEPS point sweeps); a miss shows as
+an error above tolerance.
 """
 
 from __future__ import annotations
@@ -175,6 +178,32 @@ def _phi_and_jacobian(W, b, mu, r, phi, J):
 
 
 @numba.njit(cache=True)
+def _lu_solve(A, b):
+    """x (n,) with A x = b by Gaussian elimination with partial pivoting, and whether A was
+    regular (a pivot below 1e-14 of A's largest entry means singular). A, b are not changed."""
+    n = b.shape[0]
+    a = A.copy()
+    x = b.copy()
+    small = 1e-14 * max(np.abs(a).max(), 1e-300)
+    for k in range(n):
+        p = k + np.argmax(np.abs(a[k:, k]))
+        if abs(a[p, k]) <= small:
+            return x, False
+        if p != k:
+            for j in range(n):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+            x[k], x[p] = x[p], x[k]
+        for i in range(k + 1, n):
+            f = a[i, k] / a[k, k]
+            if f != 0.0:
+                a[i, k:] -= f * a[k, k:]
+                x[i] -= f * x[k]
+    for k in range(n - 1, -1, -1):
+        x[k] = (x[k] - a[k, k + 1:] @ x[k + 1:]) / a[k, k]
+    return x, True
+
+
+@numba.njit(cache=True)
 def _block_error(W, b, mu, r):
     """Natural-map error ‖f‖ / ‖r‖ of the block alone."""
     u = W @ r + b
@@ -205,9 +234,8 @@ def solve_block(W, b, mu, r, tol):
         if err <= tol:
             return err
         f0 = _phi_and_jacobian(W, b, mu, r, phi, J)
-        try:
-            step = np.linalg.solve(J, -phi)
-        except Exception:  # singular generalised Jacobian (redundant contacts): least squares
+        step, ok = _lu_solve(J, -phi)
+        if not ok:  # singular generalised Jacobian (redundant contacts): least squares
             step = np.linalg.lstsq(J, -phi, 1e-12)[0]
         a = 1.0
         for _ls in range(20):
@@ -284,6 +312,6 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                         add_compliance(v, d, hn[c, a] * dn + ht[c, a] * dt, diagonal, block, pos, start, dofs,
                                        offset, values)
         error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
-        if error <= tol:
+        if error <= tol or nb == 1:  # one block: its solve was the whole solve
             return sweep, error
     return max_sweeps, error

@@ -127,3 +127,17 @@ def test_auto_choice():
     assert isinstance(for_scene(settings, 1, 3), NLGS) and isinstance(for_scene(settings, 72, 72), NLGS)
     assert isinstance(for_scene(settings, 0, 100), NLGS)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)
+
+
+def test_block_solver_with_redundant_contacts():
+    """Two identical contacts in one soft block (the block's Jacobian is singular): the solver
+    takes a least-squares Newton step instead of failing, and the answer satisfies the law."""
+    p = random_problem(np.random.default_rng(5), "soft", 6)
+    p.dof[1], p.hn[1], p.ht[1], p.gap_term[1], p.mu[1] = p.dof[0], p.hn[0], p.ht[0], p.gap_term[0], p.mu[0]
+    p.gap_term[0] = p.gap_term[1] = -5.0  # both closing
+    from compute.contact.compliance import delassus_blocks
+
+    delassus_blocks(p.dof, p.hn, p.ht, *p.compliance.arrays(), p.W)
+    report = BlockGS(1e-10, 1000).solve(p)
+    assert report.residual <= 1e-10 and error_of(p, p.impulse) <= 1e-9
+    assert p.impulse[0, 0] + p.impulse[1, 0] > 0
