@@ -94,7 +94,7 @@ class Stepper:
         tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if m.nonlinear else (np.inf, 1)
         v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts)
         if not np.all(np.isfinite(v)):
-            raise StepFailure(f"non-finite velocities after the contact solve (NLGS residual {report.residual:.3g} "
+            raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")
         self._counts["newton_iterations"] += iterations
         state.q += h * ((1.0 - th) * state.v + th * v)
