@@ -72,6 +72,19 @@ def add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values):
         v[dofs[s0 + q]] += values[o + q] * a
 
 
+@numba.njit(cache=True, inline="always")
+def add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values):
+    """v += M̂⁻¹ H_c (dn, dt): the velocity change of an impulse change (dn, dt) of contact c."""
+    for k in range(dof.shape[1]):
+        d = dof[c, k]
+        if d >= 0:
+            a = hn[c, k] * dn + ht[c, k] * dt
+            if block[d] < 0:  # 1x1 block, inline
+                v[d] += diagonal[d] * a
+            else:
+                add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values)
+
+
 @numba.njit(cache=True)
 def delassus_blocks(dof, hn, ht, diagonal, block, pos, start, dofs, offset, values, W):
     """W[c] = H_c^T M̂⁻¹ H_c, the (2, 2) local Delassus block of every contact c."""

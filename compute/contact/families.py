@@ -139,14 +139,7 @@ def _node_disk_rows(model, q, pairs, centres):
     c = Contacts.empty(len(pairs))
     node_disk_rows(pairs, model.soft_nodes(q), model.node_dof0, np.ascontiguousarray(r.centres(q)), r.radii,
                    r.dof_of(), c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
-    c.pairs[:] = pairs
-    k = model.node_body[pairs[:, 0]]
-    c.body_i[:] = model.soft_ids[k]
-    c.body_j[:] = r.ids[pairs[:, 1]]
-    c.mu[:] = model.friction[model.soft_material[k], r.material[pairs[:, 1]]]
-    if centres is not None:
-        c.branch[:] = centres[c.body_j] - centres[c.body_i]
-    return c
+    return _node_body_pairs(model, c, pairs, r.ids[pairs[:, 1]], r.material[pairs[:, 1]], centres)
 
 
 def _node_segment_candidates(model, q, broad, skin):
@@ -159,11 +152,19 @@ def _node_segment_rows(model, q, pairs, centres):
     c = Contacts.empty(len(pairs))
     node_segment_rows(pairs, model.soft_nodes(q), model.node_dof0, model.loop_nodes, model.loop_start,
                       c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
-    c.pairs[:] = pairs[:, :2]
+    return _node_body_pairs(model, c, pairs[:, :2], model.soft_ids[pairs[:, 1]], model.soft_material[pairs[:, 1]],
+                            centres)
+
+
+def _node_body_pairs(model, c, pairs, body_j, material_j, centres):
+    """Label the contacts ``c`` of (soft node, body) ``pairs`` (m, 2): bodies, friction, branch
+    vectors (centre to centre) when ``centres`` is given; ``body_j``, ``material_j`` (m,) of the
+    other bodies."""
+    c.pairs[:] = pairs
     k = model.node_body[pairs[:, 0]]
     c.body_i[:] = model.soft_ids[k]
-    c.body_j[:] = model.soft_ids[pairs[:, 1]]
-    c.mu[:] = model.friction[model.soft_material[k], model.soft_material[pairs[:, 1]]]
+    c.body_j[:] = body_j
+    c.mu[:] = model.friction[model.soft_material[k], material_j]
     if centres is not None:
         c.branch[:] = centres[c.body_j] - centres[c.body_i]
     return c

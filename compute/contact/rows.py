@@ -115,6 +115,19 @@ def disk_wall_rows(pairs, centres, radii, dof0, bounds, wall_dof0, normals, axes
         ht[c, 3] = tx * axes[w, 0] + ty * axes[w, 1]
 
 
+@numba.njit(cache=True, inline="always")
+def local_velocity(dof, hn, ht, c, v):
+    """(H_n,cᵀ v, H_t,cᵀ v): the normal and tangential velocities of contact c for velocities v."""
+    un = 0.0
+    ut = 0.0
+    for k in range(dof.shape[1]):
+        d = dof[c, k]
+        if d >= 0:
+            un += hn[c, k] * v[d]
+            ut += ht[c, k] * v[d]
+    return un, ut
+
+
 @numba.njit(cache=True)
 def generalised_impulse(dof, hn, ht, r, n_dofs):
     """H r (n_dofs,) for the sparse rows dof, hn, ht (nc, MAX_DOFS) and impulses r (nc, 2)."""

@@ -36,10 +36,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from compute.contact.compliance import add_compliance
+from compute.contact.compliance import add_contact_impulse
+from compute.contact.rows import local_velocity
 from compute.solvers import SolveReport
 from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
-from compute.solvers.residual import local_error, natural_map_error
+from compute.solvers.residual import natural_map_error, relative, squared_error
 
 BLOCK_ITERATIONS = 30
 FALLBACK_SWEEPS = 200
@@ -205,17 +206,16 @@ def _lu_solve(A, b):
 
 @numba.njit(cache=True)
 def _block_error(W, b, mu, r):
-    """Natural-map error ‖f‖ / ‖r‖ of the block alone."""
+    """Natural-map error ‖f‖ / ‖r‖ of the block alone (compute.solvers.residual)."""
     u = W @ r + b
+    size = np.abs(W) @ np.abs(r) + np.abs(b)  # magnitudes of the terms of u
     num = 0.0
     den = 0.0
     for c in range(r.shape[0] // 2):
-        fn, ft = local_error(W[2 * c, 2 * c], u[2 * c], u[2 * c + 1], r[2 * c], r[2 * c + 1], mu[c])
-        num += fn * fn + ft * ft
-        den += r[2 * c] ** 2 + r[2 * c + 1] ** 2
-    if num == 0.0:
-        return 0.0
-    return np.sqrt(num / den) if den > 0.0 else np.inf
+        i, t = 2 * c, 2 * c + 1
+        num += squared_error(W[i, i], u[i], u[t], r[i], r[t], mu[c], size[i] + size[t])
+        den += r[i] ** 2 + r[t] ** 2
+    return relative(num, den)
 
 
 @numba.njit(cache=True)
@@ -269,7 +269,6 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
     """Solve the contact problem in place (module docstring); v (n_dofs,) includes the warm
     start impulses. Returns (sweeps, natural-map error)."""
     nb = bstart.shape[0] - 1
-    m = dof.shape[1]
     error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
     if error <= tol:
         return 0, error
@@ -285,14 +284,8 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                 c = order[bstart[B] + i]
                 rb[2 * i], rb[2 * i + 1] = r[c, 0], r[c, 1]
                 mub[i] = mu[c]
-                un = gap_term[c]
-                ut = 0.0
-                for a in range(m):
-                    d = dof[c, a]
-                    if d >= 0:
-                        un += hn[c, a] * v[d]
-                        ut += ht[c, a] * v[d]
-                u[2 * i], u[2 * i + 1] = un, ut
+                un, ut = local_velocity(dof, hn, ht, c, v)
+                u[2 * i], u[2 * i + 1] = un + gap_term[c], ut
             bb = u - Wb @ rb
             r0 = rb.copy()
             if k == 1:
@@ -306,11 +299,7 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                 if dn == 0.0 and dt == 0.0:
                     continue
                 r[c, 0], r[c, 1] = rb[2 * i], rb[2 * i + 1]
-                for a in range(m):
-                    d = dof[c, a]
-                    if d >= 0:
-                        add_compliance(v, d, hn[c, a] * dn + ht[c, a] * dt, diagonal, block, pos, start, dofs,
-                                       offset, values)
+                add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values)
         error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
         if error <= tol or nb == 1:  # one block: its solve was the whole solve
             return sweep, error

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from compute.contact.compliance import add_compliance
-from compute.contact.rows import generalised_impulse
+from compute.contact.compliance import add_compliance, add_contact_impulse
+from compute.contact.rows import generalised_impulse, local_velocity
 from compute.solvers import SolveReport
 from compute.solvers.residual import natural_map_error
 
@@ -82,18 +82,12 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
     include the warm-start impulses (v = v_free + M̂⁻¹ H r). Returns (sweeps, natural-map error
     at the stop).
     """
-    nc, m = dof.shape
     for sweep in range(1, max_sweeps + 1):
         num = 0.0
         den = 0.0
-        for c in range(nc):
-            un = gap_term[c]
-            ut = 0.0
-            for k in range(m):
-                d = dof[c, k]
-                if d >= 0:
-                    un += hn[c, k] * v[d]
-                    ut += ht[c, k] * v[d]
+        for c in range(dof.shape[0]):
+            un, ut = local_velocity(dof, hn, ht, c, v)
+            un += gap_term[c]
             rn0, rt0 = r[c, 0], r[c, 1]
             bn = un - W[c, 0, 0] * rn0 - W[c, 0, 1] * rt0
             bt = ut - W[c, 1, 0] * rn0 - W[c, 1, 1] * rt0
@@ -103,14 +97,7 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
             dn, dt = rn - rn0, rt - rt0
             if dn != 0.0 or dt != 0.0:
                 r[c, 0], r[c, 1] = rn, rt
-                for k in range(m):
-                    d = dof[c, k]
-                    if d >= 0:
-                        a = hn[c, k] * dn + ht[c, k] * dt
-                        if block[d] < 0:
-                            v[d] += diagonal[d] * a
-                        else:
-                            add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values)
+                add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values)
             num += dn * dn + dt * dt
             den += rn * rn + rt * rt
         change = np.sqrt(num / den) if den > 0.0 else 0.0

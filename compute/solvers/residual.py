@@ -41,32 +41,45 @@ def local_error(wnn, un, ut, rn, rt, mu):
     return rn - pn, rt - pt
 
 
+@numba.njit(cache=True, inline="always")
+def squared_error(wnn, un, ut, rn, rt, mu, size):
+    """|f|² of one contact (``local_error``), 0 when f is below ``ROUNDING`` times the magnitude of
+    the numbers it is computed from: ``size`` the sum of the magnitudes of the terms of u (a
+    touching contact at rest has u at rounding level, and f with it)."""
+    fn, ft = local_error(wnn, un, ut, rn, rt, mu)
+    rho = 1.0 / wnn if wnn > 0.0 else 1.0
+    if abs(fn) + abs(ft) <= ROUNDING * (rho * size + abs(rn) + abs(rt)):
+        return 0.0
+    return fn * fn + ft * ft
+
+
+@numba.njit(cache=True, inline="always")
+def relative(num, den):
+    """sqrt(Σ|f|² / Σ|r|²): 0 when every f is 0, inf when r = 0 but some f is not."""
+    if num == 0.0:
+        return 0.0
+    return np.sqrt(num / den) if den > 0.0 else np.inf
+
+
 @numba.njit(cache=True)
 def natural_map_error(dof, hn, ht, W, gap_term, mu, r, v):
     """‖f‖ / ‖r‖ (module docstring) of impulses r (nc, 2) with velocities v (n_dofs,)
     = v_free + M̂⁻¹ H r; rows of H ``dof``, ``hn``, ``ht`` (nc, m), ``W`` (nc, 2, 2),
     ``gap_term`` (nc,), ``mu`` (nc,). 0 for no contact or r = 0 with every contact open; inf for
-    r = 0 with some contact closing. A contact's f below ``ROUNDING`` times the magnitude of the
-    numbers it is computed from counts as 0."""
+    r = 0 with some contact closing; f at rounding level counts as 0 (``squared_error``)."""
     nc, m = dof.shape
     num = 0.0
     den = 0.0
     for c in range(nc):
         un = gap_term[c]
         ut = 0.0
-        size = abs(gap_term[c])  # magnitude of the terms summed into u: its rounding scale
+        size = abs(gap_term[c])
         for k in range(m):
             d = dof[c, k]
             if d >= 0:
                 un += hn[c, k] * v[d]
                 ut += ht[c, k] * v[d]
                 size += abs(hn[c, k] * v[d]) + abs(ht[c, k] * v[d])
-        fn, ft = local_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c])
-        rho = 1.0 / W[c, 0, 0] if W[c, 0, 0] > 0.0 else 1.0
-        if abs(fn) + abs(ft) <= ROUNDING * (rho * size + abs(r[c, 0]) + abs(r[c, 1])):
-            continue  # below the resolution of this contact's own numbers (a touching contact at rest)
-        num += fn * fn + ft * ft
+        num += squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size)
         den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
-    if num == 0.0:
-        return 0.0
-    return np.sqrt(num / den) if den > 0.0 else np.inf
+    return relative(num, den)
