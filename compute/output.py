@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from compute.contact.rows import Contacts
+from compute.errors import SceneError
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
                  "xmin", "xmax", "ymin", "ymax"]
@@ -114,9 +115,8 @@ class History:
         if resume_step is None or not path.is_file():
             with open(path, "w", newline="") as fh:
                 csv.writer(fh).writerow(HISTORY_COLUMNS)
-        else:  # drop rows written after the checkpoint we resume from
-            rows = [r for r in read_csv_rows(path) if int(r["step"]) <= resume_step]
-            write_csv_rows(path, HISTORY_COLUMNS, rows)
+        else:
+            write_csv_rows(path, HISTORY_COLUMNS, rows_up_to_step(path, resume_step))
         self.fh = open(path, "a", newline="")
         self.writer = csv.writer(self.fh)
 
@@ -129,6 +129,30 @@ class History:
 
     def close(self) -> None:
         self.fh.close()
+
+
+def rows_up_to_step(path: Path, step: int) -> list[dict]:
+    """The history rows of steps 1..``step``: what a checkpoint at ``step`` had flushed.
+
+    Rows are flushed to disk before each checkpoint, so every row up to the checkpoint's step is
+    complete; whatever follows it (rows of steps after the checkpoint, possibly a last line cut by a
+    kill, such as ``159.`` or ``159.0,3``) is dropped, however it parses.
+    """
+    rows = []
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header != HISTORY_COLUMNS:
+            raise SceneError(path, "header", "the history columns of this version (" + ",".join(HISTORY_COLUMNS)
+                             + "); run again without --resume", header)
+        for fields in reader:
+            row = dict(zip(HISTORY_COLUMNS, fields))
+            if len(fields) != len(HISTORY_COLUMNS) or not row["step"].isdigit() or int(row["step"]) > step:
+                break
+            rows.append(row)
+            if int(row["step"]) == step:
+                break
+    return rows
 
 
 def _fmt(x) -> str:

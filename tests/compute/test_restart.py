@@ -9,7 +9,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
+from compute.errors import SceneError
+from compute.output import HISTORY_COLUMNS, History
 from compute.run import run
 from pre.packing import polydisperse_radii, random_loose_packing
 from pre.scene import default_parameters, write_scene
@@ -63,3 +66,28 @@ def test_killed_and_resumed_run_matches_uninterrupted(tmp_path):
         sorted(p.name for p in (tmp_path / "ref" / "frames").glob("*.vtu"))
     steps = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1, usecols=1)
     assert np.array_equal(steps, np.arange(1, reference.step + 1))  # no step lost or repeated
+
+
+def _history_of_steps(path: Path, steps: int) -> None:
+    h = History(path, None)
+    for step in range(1, steps + 1):
+        h.append({k: (float(step) if k == "time" else step if k == "step" else 0.5) for k in HISTORY_COLUMNS})
+    h.close()
+
+
+@pytest.mark.parametrize("cut", ["159.", "159.0,3", "159.0,3,1,0.5", "\n"])
+def test_resume_drops_a_history_line_cut_by_a_kill(tmp_path, cut):
+    path = tmp_path / "history.csv"
+    _history_of_steps(path, 158)
+    with open(path, "a") as fh:
+        fh.write(cut)  # a kill while the row of step 159 was being written
+    History(path, resume_step=150).close()
+    steps = np.loadtxt(path, delimiter=",", skiprows=1, usecols=1)
+    assert np.array_equal(steps, np.arange(1, 151))
+
+
+def test_resume_refuses_a_history_of_other_columns(tmp_path):
+    path = tmp_path / "history.csv"
+    path.write_text("time,step,phi\n1.0,1,0.8\n")
+    with pytest.raises(SceneError, match="history.csv.*header"):
+        History(path, resume_step=1)
