@@ -55,7 +55,8 @@ def test_killed_and_resumed_run_matches_uninterrupted(tmp_path):
         killed_at = int(d["scalars"][1])
     assert killed_at < reference.step
 
-    subprocess.run(cmd + ["--resume"], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
     with np.load(ckpt) as d:
         q = d["q"]
     box = reference.q[-4:]  # rigid-only scene: the last dofs are the walls
