@@ -1,11 +1,11 @@
-"""``python -m compute SCENE_DIR --out OUT_DIR [--resume]``: run a scene."""
+"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait]``: run a scene."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from compute.errors import SceneError, SimulationError
+from compute.errors import InputError, SimulationError
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -13,6 +13,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("scene", help="scene folder written by pre (scene.toml + bodies file)")
     p.add_argument("--out", required=True, help="output folder (frames, history, checkpoints)")
     p.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
+    p.add_argument("--wait", action="store_true",
+                   help="if another compute is writing --out, wait for it to finish instead of refusing")
     p.add_argument("--threads", type=int, default=None,
                    help="threads of the parallel kernels (default: NUMBA_NUM_THREADS, else every core)")
     a = p.parse_args(argv)
@@ -25,8 +27,8 @@ def main(argv: list[str] | None = None) -> int:
     from compute.run import run
 
     try:
-        run(a.scene, a.out, resume=a.resume)
-    except SceneError as exc:
+        run(a.scene, a.out, resume=a.resume, wait=a.wait)
+    except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except SimulationError as exc:

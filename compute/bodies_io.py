@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from compute.errors import SceneError
+from compute.schema import SCALE, TINY
 
 CELL_ELEMENT = {"triangle": "T3", "triangle6": "T6"}
 ELEMENT_CELL = {v: k for k, v in CELL_ELEMENT.items()}
@@ -42,8 +43,12 @@ def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
     except Exception as exc:  # meshio raises many types on truncated / corrupt XML
         raise SceneError(path, "<file>", "a complete, readable VTU file", f"{type(exc).__name__}: {exc}") from None
     points = np.asarray(mesh.points, dtype=float)[:, :2]
-    if not np.all(np.isfinite(points)):
-        raise SceneError(path, "points", "finite coordinates")
+    if not np.all(np.isfinite(points)) or (points.size and np.abs(points).max() > SCALE):
+        raise SceneError(path, "points", f"finite coordinates within ±{SCALE:g}")
+    for block in mesh.cells:
+        if block.data.size and (block.data.min() < 0 or block.data.max() >= len(points)):
+            raise SceneError(path, f"cells ({block.type})", f"point indices in 0..{len(points) - 1}",
+                             int(block.data.max() if block.data.max() >= len(points) else block.data.min()))
     fields = {}
     for name in ("body", "material", "radius"):
         if name not in mesh.cell_data:
@@ -52,6 +57,12 @@ def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
         if len(blocks) != len(mesh.cells) or any(len(b) != len(c.data) for b, c in zip(blocks, mesh.cells)):
             raise SceneError(path, f"cell_data.{name}", "one value per cell")
         fields[name] = [np.asarray(b).reshape(len(b), -1)[:, 0] for b in blocks]
+        if name != "radius" and any(not np.all(np.isfinite(b) & (b == np.round(b))) for b in fields[name]):
+            raise SceneError(path, f"cell_data.{name}", "integers")
+    n_cells = sum(len(c.data) for c in mesh.cells)
+    if any(len(b) and (b.max() >= n_cells) for b in fields["body"]):
+        raise SceneError(path, "cell_data.body", f"contiguous body ids 0..N-1 (N <= {n_cells} cells)",
+                         int(max(b.max() for b in fields["body"] if len(b))))
 
     rigid_ids, rigid_centres, rigid_radii, deformable = [], [], [], []
     n_bodies = 1 + max((int(b.max()) for b in fields["body"] if len(b)), default=-1)
@@ -66,8 +77,9 @@ def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
         if len(mat) and (mat.min() < 0 or mat.max() >= len(material_names)):
             raise SceneError(path, "cell_data.material", f"indices into bodies.materials (0..{len(material_names) - 1})",
                              int(mat.min() if mat.min() < 0 else mat.max()))
-        if not np.all(np.isfinite(rad)) or (len(rad) and rad.min() <= 0):
-            raise SceneError(path, "cell_data.radius", "positive radii", float(rad.min()))
+        if not np.all(np.isfinite(rad)) or (len(rad) and (rad.min() < TINY or rad.max() > SCALE)):
+            raise SceneError(path, "cell_data.radius", f"positive radii in [{TINY:g}, {SCALE:g}]",
+                             float(rad.min() if len(rad) and rad.min() < TINY else rad.max()))
         if block.type == "vertex":
             kinds = {materials[material_names[m]].kind for m in mat}
             if kinds - {"rigid"}:

@@ -9,8 +9,8 @@ How one run is executed (:func:`execute_run`, a Dask task)
 ----------------------------------------------------------
 The task starts a child process ``python -m compute.dispatch SCENE OUT`` and waits for it:
 
-- the child holds an exclusive ``fcntl.flock`` on ``OUT/.lock`` while it computes, so that two
-  runs never write the same folder (e.g. an orphan of a killed study and its restart: the second
+- the child holds the output folder's lock (:mod:`compute.output_folder`, an exclusive
+  ``fcntl.flock`` on ``OUT/.lock``) while it computes, so that two runs never write the same folder (e.g. an orphan of a killed study and its restart: the second
   waits for the first, then finds COMPLETE and skips);
 - the child asks the kernel to kill it when its parent (the worker) dies (Linux
   ``PR_SET_PDEATHSIG``): killing the study kills its runs, they resume from their checkpoints;
@@ -48,7 +48,6 @@ from pathlib import Path
 
 __all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "run_status"]
 
-LOCK = ".lock"
 LOG = "compute.log"
 CHILD_ALREADY_COMPLETE = 10  # child exit code: another process completed the run meanwhile
 _CHILD_CODES = {0: "complete", CHILD_ALREADY_COMPLETE: "skipped", 2: "failed", 3: "failed", 1: "failed"}
@@ -246,10 +245,12 @@ def _die_with_parent() -> None:
 
 
 def _child(argv: list[str] | None = None) -> int:
-    """``python -m compute.dispatch SCENE OUT [--retry-failed]``: one run, under OUT/.lock."""
+    """``python -m compute.dispatch SCENE OUT [--retry-failed]``: one run, under OUT's lock."""
     import argparse
-    import fcntl
     import traceback
+
+    from compute import output_folder
+    from compute.errors import InputError
 
     p = argparse.ArgumentParser(prog="python -m compute.dispatch",
                                 description="Run one scene under its output folder's lock (used by dispatch).")
@@ -259,13 +260,16 @@ def _child(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     _die_with_parent()
     out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    with (out / LOCK).open("a") as lock:
+    try:
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+            key = output_folder.acquire(out)
+        except InputError:
             print(f"{out} is locked by another process: waiting for it", flush=True)
-            fcntl.flock(lock, fcntl.LOCK_EX)
+            key = output_folder.acquire(out, wait=True)
+    except InputError as exc:
+        print(f"error: {exc}", flush=True)
+        return 2
+    try:
         status = run_status(out)
         if status in ("complete", "incomplete"):
             print(f"{status.upper()} exists: nothing to do", flush=True)
@@ -275,7 +279,7 @@ def _child(argv: list[str] | None = None) -> int:
                 print("FAILED exists: not retried", flush=True)
                 return 3
             (out / "FAILED").unlink()
-        from compute.errors import SceneError, SimulationError
+        from compute.errors import SimulationError
         from compute.run import run
         from compute.threads import configure
 
@@ -283,8 +287,8 @@ def _child(argv: list[str] | None = None) -> int:
 
         try:
             run(a.scene, out, resume=True, log=lambda msg: print(msg, flush=True))
-        except SceneError as exc:
-            (out / "FAILED").write_text(f"scene error: {exc}\n")
+        except InputError as exc:
+            (out / "FAILED").write_text(f"input error: {exc}\n")
             print(f"error: {exc}", flush=True)
             return 2
         except SimulationError as exc:  # compute.run wrote FAILED
@@ -294,6 +298,8 @@ def _child(argv: list[str] | None = None) -> int:
             (out / "FAILED").write_text("exception in the run:\n" + traceback.format_exc())
             traceback.print_exc()
             return 1
+    finally:
+        output_folder.release(key)
     return 0
 
 

@@ -1,11 +1,9 @@
 """Errors raised by the compute stage."""
 
 
-class SceneError(ValueError):
-    """A scene folder is missing, malformed or inconsistent.
-
-    The message names the file, the field and what was expected.
-    """
+class InputError(ValueError):
+    """Input the toolkit cannot use; the message names the file (or folder), the field and what
+    was expected."""
 
     def __init__(self, file, field: str, expected: str, got: object = None):
         self.file, self.field, self.expected = str(file), field, expected
@@ -13,6 +11,15 @@ class SceneError(ValueError):
         if got is not None:
             msg += f", got {got!r}"
         super().__init__(msg)
+
+
+class SceneError(InputError):
+    """A scene folder is missing, malformed or inconsistent."""
+
+
+class OutputFolderError(InputError):
+    """An output folder that cannot be used: not a folder, not writable, written by another
+    compute, or holding files this version cannot resume from."""
 
 
 class SimulationError(RuntimeError):

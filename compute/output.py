@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from compute.contact.rows import Contacts
-from compute.errors import SceneError
+from compute.errors import OutputFolderError
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
                  "xmin", "xmax", "ymin", "ymax"]
@@ -143,7 +143,7 @@ def rows_up_to_step(path: Path, step: int) -> list[dict]:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header != HISTORY_COLUMNS:
-            raise SceneError(path, "header", "the history columns of this version (" + ",".join(HISTORY_COLUMNS)
+            raise OutputFolderError(path, "header", "the history columns of this version (" + ",".join(HISTORY_COLUMNS)
                              + "); run again without --resume", header)
         for fields in reader:
             row = dict(zip(HISTORY_COLUMNS, fields))

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute import output, summary
+from compute import output, output_folder, summary
 from compute.errors import SimulationError
 from compute.model import Model
 from compute.scene import read_scene
@@ -31,16 +31,26 @@ CHECKPOINT = "checkpoint/state.npz"
 
 
 class Run:
-    """A run of a scene into an output folder; ``execute`` does the whole loading program."""
+    """A run of a scene into an output folder; ``execute`` does the whole loading program.
 
-    def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None):
-        self.scene = read_scene(scene_dir)
+    The output folder's lock (:mod:`compute.output_folder`) is held from construction until
+    ``execute`` returns; ``wait``: wait for another compute writing the folder instead of
+    refusing."""
+
+    def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None,
+                 wait: bool = False):
+        self.scene = read_scene(scene_dir)  # a bad scene stops before anything is written
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
         self.stepper = Stepper(self.model)
-        self.state = self._start(resume)
-        self.history = output.History(self.out / "history.csv", self.state.step if resume else None)
+        self._lock = output_folder.acquire(self.out, wait)  # held until execute() returns
+        try:
+            self.state = self._start(resume)
+            self.history = output.History(self.out / "history.csv", self.state.step if resume else None)
+        except BaseException:
+            output_folder.release(self._lock)
+            raise
 
     # --- set-up ------------------------------------------------------------------------
     def _start(self, resume: bool) -> State:
@@ -90,6 +100,7 @@ class Run:
             raise
         finally:
             self.history.close()
+            output_folder.release(self._lock)
         return self.state
 
     def _pressure_stage(self, pressure: float) -> None:
@@ -187,6 +198,6 @@ def build_model(scene) -> Model:
     return Model(scene)
 
 
-def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None) -> State:
+def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None, wait: bool = False) -> State:
     """Run the scene in ``scene_dir`` and write frames, history and checkpoints in ``out_dir``."""
-    return Run(scene_dir, out_dir, resume=resume, log=log).execute()
+    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait).execute()

@@ -12,7 +12,6 @@ is then at most half the area difference between two disks, well below one disk'
 Public API
 ----------
 - :func:`choose_deformable`: the mask (n,) of disks to make deformable, for radii (n,) and κ.
-- :func:`soft_material`: the neo-Hookean material table (FORMATS.md) of the soft disks.
 - :func:`mixture_scene`: read a rigid scene folder, write the mixture scene folder.
 - :func:`compaction_parameters`: the scene tables of a quasi-static isotropic compaction in
   P/E stages (reduced units ⟨d⟩ = ρ = E = 1), :data:`QUASI_STATIC` its numerical settings.
@@ -28,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["choose_deformable", "soft_material", "mixture_scene", "compaction_parameters", "QUASI_STATIC",
+__all__ = ["choose_deformable", "mixture_scene", "compaction_parameters", "QUASI_STATIC",
            "RIGID", "SOFT"]
 
 RIGID, SOFT = "rigid", "soft"
@@ -60,15 +59,10 @@ def compaction_parameters(bounds: tuple[float, float, float, float], friction: f
     ``pressures`` (P/E, E = 1), each run to equilibrium (phi variation < 1e-4 over check_every
     steps, inertial number < 1e-4, wall force = P L within 1 %). :data:`QUASI_STATIC` then
     ``overrides`` ("table.key" -> value) set the numerical settings."""
-    from pre.scene import default_parameters
+    from pre.scene import default_parameters, overridden
 
     params = default_parameters(bounds, friction, 1.0, [float(p) for p in pressures])
-    for key, value in {**QUASI_STATIC, **(overrides or {})}.items():
-        table, field = key.split(".")
-        if table not in params:
-            raise ValueError(f"overrides: unknown table {table!r} in {key!r}")
-        params[table][field] = value
-    return params
+    return overridden(params, {**QUASI_STATIC, **(overrides or {})})
 
 
 def choose_deformable(radii: np.ndarray, kappa: float, rng: np.random.Generator | None = None) -> np.ndarray:
@@ -102,19 +96,6 @@ def choose_deformable(radii: np.ndarray, kappa: float, rng: np.random.Generator 
     return chosen
 
 
-def soft_material(element: str = "T3", volumetric: str | None = None, young: float = 1.0,
-                  poisson: float = 0.495, density: float = 1.0) -> dict:
-    """The ``[materials.soft]`` table: neo-Hookean, E = 1, ν = 0.495 by default (the paper's).
-
-    ``volumetric`` defaults to "mean_dilatation" for T6 and "standard" for T3 (the only one
-    compute accepts for one-point T3 elements)."""
-    if element not in ("T3", "T6"):
-        raise ValueError(f"element: expected 'T3' or 'T6', got {element!r}")
-    volumetric = volumetric or ("mean_dilatation" if element == "T6" else "standard")
-    return {"kind": "neo_hookean", "density": float(density), "young": float(young),
-            "poisson": float(poisson), "element": element, "volumetric": volumetric}
-
-
 def mixture_scene(rigid_scene: str | Path, folder: str | Path, kappa: float, friction: float,
                   rng: np.random.Generator | None = None, *, element: str = "T3", n_elements: int = 92,
                   volumetric: str | None = None, young: float = 1.0, poisson: float = 0.495,
@@ -131,7 +112,7 @@ def mixture_scene(rigid_scene: str | Path, folder: str | Path, kappa: float, fri
     """
     from compute.scene import read_scene
     from pre.mesh import reference_disk_mesh
-    from pre.scene import write_scene
+    from pre.scene import contact_laws, neo_hookean_material, rigid_material, write_scene
 
     rigid = read_scene(rigid_scene)
     if rigid.deformable or any(m.kind != "rigid" for m in rigid.materials.values()):
@@ -145,11 +126,9 @@ def mixture_scene(rigid_scene: str | Path, folder: str | Path, kappa: float, fri
     params = copy.deepcopy(parameters) if parameters is not None else copy.deepcopy(rigid.raw)
     params.pop("bodies", None)
     params["walls"] = {**params["walls"], **dict(zip(("xmin", "xmax", "ymin", "ymax"), rigid.walls.bounds))}
-    params["materials"] = {RIGID: {"kind": "rigid", "density": float(rigid.materials[rigid.material_names[0]].density)},
-                           SOFT: soft_material(element, volumetric, young, poisson)}
-    law = {"law": "coulomb", "friction": float(friction)}
-    params["interactions"] = [{"between": list(pair), **law}
-                              for pair in ((RIGID, RIGID), (RIGID, SOFT), (SOFT, SOFT))]
+    params["materials"] = {RIGID: rigid_material(rigid.materials[rigid.material_names[0]].density),
+                           SOFT: neo_hookean_material(element, volumetric, young, poisson)}
+    params["interactions"] = contact_laws([RIGID, SOFT], friction)
     meshes = {}
     if soft.any():
         reference = reference_disk_mesh(n_elements, element)

@@ -26,22 +26,17 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__)
 def parameters(pressures, *, element: str, volumetric: str, time_step: float, theta: float, wall_mass: float,
                phi_tolerance: float, check_every: int, newton_tolerance: float, nlgs_tolerance: float,
                bounds, poisson: float = 0.495, max_steps: int = 2000) -> dict:
-    """The scene.toml tables of the single-particle study (reduced units)."""
-    return {
-        "schema_version": 1,
-        "materials": {"soft": {"kind": "neo_hookean", "density": 1.0, "young": 1.0, "poisson": poisson,
-                               "element": element, "volumetric": volumetric}},
-        "interactions": [{"between": ["soft", "soft"], "law": "frictionless"}],
-        "walls": {"xmin": bounds[0], "xmax": bounds[1], "ymin": bounds[2], "ymax": bounds[3],
-                  "mass": wall_mass, "control": "pressure", "damping_inertial_number": 0.0},
-        "loading": {"pressures": [float(p) for p in pressures], "phi_tolerance": phi_tolerance,
-                    "inertial_tolerance": 1e-4, "check_every": check_every, "max_steps_per_stage": max_steps,
-                    "gravity": [0.0, 0.0]},
-        "solver": {"time_step": time_step, "theta": theta, "nlgs_tolerance": nlgs_tolerance,
-                   "nlgs_max_sweeps": 20000, "relaxation": 1.0, "skin": 0.05,
-                   "newton_tolerance": newton_tolerance, "newton_max_iterations": 40},
-        "output": {"frames": "stages", "every_steps": 0, "checkpoint_every_steps": 1000},
-    }
+    """The scene parameters of the single-particle study (reduced units)."""
+    from pre.scene import contact_laws, neo_hookean_material, scene_parameters
+
+    return scene_parameters(
+        {"soft": neo_hookean_material(element, volumetric, poisson=poisson)}, contact_laws(["soft"], 0.0),
+        **dict(zip(("xmin", "xmax", "ymin", "ymax"), bounds)), mass=wall_mass, control="pressure",
+        pressures=[float(p) for p in pressures], phi_tolerance=phi_tolerance, inertial_tolerance=1e-4,
+        check_every=check_every, max_steps_per_stage=max_steps, gravity=[0.0, 0.0],
+        time_step=time_step, theta=theta, nlgs_tolerance=nlgs_tolerance, nlgs_max_sweeps=20000, relaxation=1.0,
+        skin=0.05, newton_tolerance=newton_tolerance, newton_max_iterations=40,
+        frames="stages", every_steps=0, checkpoint_every_steps=1000)
 
 
 def face_on(points: np.ndarray, loop: np.ndarray) -> np.ndarray:

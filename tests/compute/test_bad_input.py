@@ -38,21 +38,21 @@ def _expect(scene: Path, file: str, field: str, expected: str) -> None:
 
 def test_missing_field(scene):
     _edit_toml(scene, r"^time_step = .*$", "")
-    _expect(scene, "scene.toml", "solver.time_step", "a number (missing)")
+    _expect(scene, "scene.toml", "solver.time_step", "a finite number (time step h) (missing)")
 
 
 def test_mistyped_field(scene):
     _edit_toml(scene, r"^time_step = .*$", 'time_step = "fast"')
-    _expect(scene, "scene.toml", "solver.time_step", "a number")
+    _expect(scene, "scene.toml", "solver.time_step", "a finite number")
 
 
 def test_out_of_range_field(scene):
     _edit_toml(scene, r"^theta = .*$", "theta = 0.2")
-    _expect(scene, "scene.toml", "solver.theta", ">= 0.5")
+    _expect(scene, "scene.toml", "solver.theta", "in [0.5, 1]")
 
 
 def test_unknown_contact_solver(scene):
-    _edit_toml(scene, r"^theta = (.*)$", r'theta = \1\ncontact = "lemke"')
+    _edit_toml(scene, r'^contact = "auto"$', 'contact = "lemke"')
     _expect(scene, "scene.toml", "solver.contact", "one of 'auto', 'nlgs', 'block'")
 
 
@@ -72,7 +72,10 @@ def test_unknown_law(scene):
 
 
 def test_missing_interaction(scene):
-    _edit_toml(scene, r"^\[\[interactions\]\]$", "[[unused]]")
+    text = (scene / "scene.toml").read_text()
+    start = text.index("[[interactions]]")
+    end = text.index("\n[", start) + 1
+    (scene / "scene.toml").write_text(text[:start] + text[end:])
     _expect(scene, "scene.toml", "interactions", "a non-empty array of tables")
 
 
@@ -89,7 +92,7 @@ def _rewrite_bodies(scene: Path, centres, radii):
 
 def test_negative_radius(scene):
     _rewrite_bodies(scene, CENTRES, [0.5, -0.5, 0.5])
-    _expect(scene, "bodies.vtu", "cell_data.radius", "positive radii")
+    _expect(scene, "bodies.vtu", "cell_data.radius", "positive radii in [1e-12, 1e+12]")
 
 
 def test_overlapping_bodies(scene):
@@ -124,4 +127,81 @@ def test_cli_reports_the_error(scene, tmp_path, capsys):
     _edit_toml(scene, r"^time_step = .*$", "time_step = -1.0")
     assert main([str(scene), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert "scene.toml" in err and "solver.time_step" in err and "> 0" in err
+    assert "scene.toml" in err and "solver.time_step" in err and "in [1e-12, 1e+12]" in err
+
+
+# --- every way a scene went wrong before the scene schema, one test each ------------------------
+@pytest.mark.parametrize("old, new, field, expected", [
+    (r"^time_step = .*$", "time_step = 1e300", "solver.time_step", "in [1e-12, 1e+12]"),
+    (r"^time_step = .*$", "time_step = 1e-300", "solver.time_step", "in [1e-12, 1e+12]"),
+    (r"^pressures = \[\s*1.0,\s*\]$", "pressures = [1e300]", "loading.pressures[0]", "in [1e-12, 1e+12]"),
+    (r"^pressures = \[\s*1.0,\s*\]$", "pressures = [inf]", "loading.pressures[0]", "a finite number"),
+    (r"^gravity = \[[^\]]*\]", "gravity = [nan, 0.0]", "loading.gravity[0]", "a finite number"),
+    (r"^gravity = \[[^\]]*\]", "gravity = [0.0, -inf]", "loading.gravity[1]", "a finite number"),
+    (r"^gravity = \[[^\]]*\]", "gravity = [true, 0.0]", "loading.gravity[0]", "a finite number"),
+    (r"^density = .*$", "density = 1e300", "materials.rigid.density", "in [1e-12, 1e+12]"),
+    (r"^mass = .*$", "mass = 1e300", "walls.mass", "in [1e-12, 1e+12]"),
+    (r"^force_tolerance = ", "force_tolerence = ", "loading.force_tolerence", "did you mean force_tolerance?"),
+    (r"^damping_inertial_number = ", "damping_inertial_numbr = ", "walls.damping_inertial_numbr",
+     "did you mean damping_inertial_number?"),
+    (r"^newton_max_iterations = ", "newton_max_iteration = ", "solver.newton_max_iteration",
+     "did you mean newton_max_iterations?"),
+    (r"^\[output\]$", "[outputs]\nframes = \"stages\"\n\n[output]", "outputs", "did you mean output?"),
+    (r"^skin = (.*)$", r"skin = \1\nskim = 0.2", "solver.skim", "did you mean skin?"),
+    (r"^fixed = false$", "fixed = 0", "materials.rigid.fixed", "true or false"),
+    (r"^check_every = .*$", "check_every = 20.5", "loading.check_every", "an integer"),
+])
+def test_scene_value_is_refused_with_its_field(scene, old, new, field, expected):
+    _edit_toml(scene, old, new)
+    _expect(scene, "scene.toml", field, expected)
+
+
+def test_unreadable_scene_file(scene, monkeypatch):
+    real = Path.read_text
+
+    def denied(self, *a, **k):
+        if self.name == "scene.toml":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(Path, "read_text", denied)
+    _expect(scene, "scene.toml", "<file>", "a readable scene parameter file")
+
+
+def test_vertex_cell_past_the_points(scene):
+    import meshio
+
+    f = scene / "bodies.vtu"
+    mesh = meshio.read(f, file_format="vtu")
+    mesh.cells[0].data[-1, 0] = len(mesh.points) + 5
+    meshio.write(f, mesh, file_format="vtu")
+    _expect(scene, "bodies.vtu", "cells (vertex)", "point indices in 0..2")
+
+
+def test_a_bad_scene_writes_nothing(scene, tmp_path):
+    from compute.__main__ import main
+
+    _edit_toml(scene, r"^time_step = .*$", "time_step = 1e300")
+    assert main([str(scene), "--out", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out").exists()
+
+
+def test_out_is_an_existing_file(scene, tmp_path, capsys):
+    from compute.__main__ import main
+
+    (tmp_path / "out").write_text("not a folder")
+    assert main([str(scene), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "out: field '--out': expected an output folder, got 'an existing file'" in err
+
+
+def test_out_in_a_folder_that_cannot_be_written(scene, tmp_path, capsys, monkeypatch):
+    from compute.__main__ import main
+
+    def denied(self, *a, **k):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "mkdir", denied)  # the test may run as root, which chmod does not stop
+    assert main([str(scene), "--out", str(tmp_path / "ro" / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "field '--out': expected a folder this user can create and write in" in err and "Permission denied" in err

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from compute.errors import SceneError
+from compute.errors import OutputFolderError
 from compute.output import HISTORY_COLUMNS, History
 from compute.run import run
 from pre.packing import polydisperse_radii, random_loose_packing
@@ -90,5 +90,5 @@ def test_resume_drops_a_history_line_cut_by_a_kill(tmp_path, cut):
 def test_resume_refuses_a_history_of_other_columns(tmp_path):
     path = tmp_path / "history.csv"
     path.write_text("time,step,phi\n1.0,1,0.8\n")
-    with pytest.raises(SceneError, match="history.csv.*header"):
+    with pytest.raises(OutputFolderError, match="history.csv.*header"):
         History(path, resume_step=1)

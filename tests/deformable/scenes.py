@@ -37,26 +37,17 @@ def parameters(bounds, *, element: str = "T6", friction: float = 0.0, time_step:
                wall_mass: float = np.pi, control: str = "pressure", pressures=(1e-3,), gravity=(0.0, 0.0),
                newton_tolerance: float = 1e-9, nlgs_tolerance: float = 1e-10, check_every: int = 2,
                phi_tolerance: float = 1e-6, max_steps: int = 400, young: float = E, poisson: float = NU) -> dict:
-    law = {"law": "coulomb", "friction": friction} if friction > 0 else {"law": "frictionless"}
-    return {
-        "schema_version": 1,
-        "materials": {
-            "soft": {"kind": "neo_hookean", "density": RHO, "young": young, "poisson": poisson, "element": element,
-                     "volumetric": "mean_dilatation" if element == "T6" else "standard"},
-            "rigid": {"kind": "rigid", "density": RHO},
-        },
-        "interactions": [{"between": ["soft", "soft"], **law}, {"between": ["soft", "rigid"], **law},
-                         {"between": ["rigid", "rigid"], **law}],
-        "walls": {"xmin": bounds[0], "xmax": bounds[1], "ymin": bounds[2], "ymax": bounds[3], "mass": wall_mass,
-                  "control": control, "damping_inertial_number": 0.0},
-        "loading": {"pressures": list(pressures), "velocity": 0.0, "duration": 1.0, "phi_tolerance": phi_tolerance,
-                    "inertial_tolerance": 1e-4, "check_every": check_every, "max_steps_per_stage": max_steps,
-                    "gravity": list(gravity)},
-        "solver": {"time_step": time_step, "theta": theta, "nlgs_tolerance": nlgs_tolerance, "nlgs_max_sweeps": 50000,
-                   "relaxation": 1.0, "skin": 0.05, "newton_tolerance": newton_tolerance,
-                   "newton_max_iterations": 40},
-        "output": {"frames": "stages", "every_steps": 0, "checkpoint_every_steps": 100000},
-    }
+    from pre.scene import contact_laws, neo_hookean_material, rigid_material, scene_parameters
+
+    return scene_parameters(
+        {"soft": neo_hookean_material(element, young=young, poisson=poisson, density=RHO),
+         "rigid": rigid_material(RHO)}, contact_laws(["soft", "rigid"], friction),
+        **dict(zip(("xmin", "xmax", "ymin", "ymax"), bounds)), mass=wall_mass, control=control,
+        pressures=list(pressures), velocity=0.0, duration=1.0, phi_tolerance=phi_tolerance,
+        inertial_tolerance=1e-4, check_every=check_every, max_steps_per_stage=max_steps, gravity=list(gravity),
+        time_step=time_step, theta=theta, nlgs_tolerance=nlgs_tolerance, nlgs_max_sweeps=50000, relaxation=1.0,
+        skin=0.05, newton_tolerance=newton_tolerance, newton_max_iterations=40,
+        frames="stages", every_steps=0, checkpoint_every_steps=100000)
 
 
 def write(folder, params: dict, soft=(), rigid=()) -> Path:
