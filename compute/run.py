@@ -120,6 +120,7 @@ class Run:
                 self.log(f"stage {st.stage} (P = {pressure:.4g}) NOT equilibrated after "
                          f"{st.stage_steps} steps; frame written with equilibrated = 0")
                 break
+            self._periodic_checkpoint()
         st.stage += 1
         st.stage_steps = 0
         st.phi_check = np.nan
@@ -131,11 +132,12 @@ class Run:
         n = int(round(load.duration / self.scene.solver.time_step))
         while st.stage_steps < n:
             self._record(self.stepper.step(st, 0.0, load.velocity), 0.0, 0)
+            self._periodic_checkpoint()
         self.write_frame(0.0, equilibrated=False)
         st.stage = 1
 
     def _record(self, rep, pressure: float, halvings: int) -> None:
-        """History row, frames and checkpoints after an accepted step."""
+        """History row and frames after an accepted step."""
         st = self.state
         self.last_contacts = rep.contacts
         st.stage_steps += 1
@@ -150,7 +152,11 @@ class Run:
         out = self.scene.output
         if out.every_steps and st.step % out.every_steps == 0:
             self.write_frame(pressure, equilibrated=False)
-        if st.step % out.checkpoint_every_steps == 0:
+
+    def _periodic_checkpoint(self) -> None:
+        """A checkpoint every ``checkpoint_every_steps`` steps, taken after the step's equilibrium
+        check (a resumed run does not redo it)."""
+        if self.state.step % self.scene.output.checkpoint_every_steps == 0:
             self.checkpoint()
 
     def _inertial(self, pressure: float) -> float:
@@ -185,7 +191,9 @@ class Run:
         st.frame += 1
 
     def checkpoint(self) -> None:
-        """Save the state atomically (after flushing the history up to this step)."""
+        """Save the state atomically (after flushing the history up to this step); the run goes
+        on from it exactly as a run resumed from it would (Stepper.restart_point)."""
+        self.stepper.restart_point()
         self.history.flush()
         path = self.out / CHECKPOINT
         tmp = path.with_name("state.tmp.npz")

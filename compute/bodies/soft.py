@@ -146,6 +146,11 @@ class SoftBodies:
         """Changes whenever some body of the group refactorises (compliance blocks to redo)."""
         return int(self.matrices.version.sum())
 
+    def forget_factorisations(self) -> None:
+        """Start the next step without reused factorisations (see Stepper.restart_point)."""
+        if self.matrices is not None:
+            self.matrices.forget()
+
     def contraction_was_slow(self) -> None:
         """The last iteration contracted the correction too little: the bodies that kept an old
         factorisation refactorise at the next one."""

@@ -115,6 +115,13 @@ class NewtonMatrices:
         self.key = key
         return need
 
+    def forget(self) -> None:
+        """Drop every kept factorisation, level and compliance block: the next update starts as
+        a new group does (what a run resumed from a checkpoint starts from)."""
+        self.valid[:] = False
+        self.key = None
+        self._blocks = None
+
     def solve(self, rhs: np.ndarray, active: np.ndarray) -> np.ndarray:
         """M̂_b⁻¹ rhs_b (B, n) for the active bodies (zeros elsewhere)."""
         out = np.zeros_like(rhs)

@@ -67,6 +67,13 @@ class Stepper:
         return {**self._counts, "factorizations": sum(g.matrices.factorizations for g in self.model.soft if g.matrices),
                 "stabilised_factorizations": sum(g.matrices.stabilised for g in self.model.soft if g.matrices)}
 
+    def restart_point(self) -> None:
+        """Make the next step depend on the state alone (called at checkpoints): soft groups drop
+        the factorisations they would otherwise reuse, so that a run resumed from this
+        checkpoint and the run that goes on from it take bitwise identical steps."""
+        for g in self.model.soft:
+            g.forget_factorisations()
+
     def step(self, state, pressure: float, wall_speed: float = 0.0) -> StepReport:
         """Advance ``state`` in place. Pressure control (walls pushed by ``pressure`` × length) or,
         under velocity control, walls moving inward at ``wall_speed``."""
