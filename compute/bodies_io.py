@@ -57,8 +57,9 @@ def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
         if len(blocks) != len(mesh.cells) or any(len(b) != len(c.data) for b, c in zip(blocks, mesh.cells)):
             raise SceneError(path, f"cell_data.{name}", "one value per cell")
         fields[name] = [np.asarray(b).reshape(len(b), -1)[:, 0] for b in blocks]
-        if name != "radius" and any(not np.all(np.isfinite(b) & (b == np.round(b))) for b in fields[name]):
-            raise SceneError(path, f"cell_data.{name}", "integers")
+        if name != "radius" and any(not np.all(np.isfinite(b) & (b == np.round(b)) & (np.abs(b) < 2**31))
+                                    for b in fields[name]):
+            raise SceneError(path, f"cell_data.{name}", "integers (below 2^31 in magnitude)")
     n_cells = sum(len(c.data) for c in mesh.cells)
     if any(len(b) and (b.max() >= n_cells) for b in fields["body"]):
         raise SceneError(path, "cell_data.body", f"contiguous body ids 0..N-1 (N <= {n_cells} cells)",

@@ -134,6 +134,9 @@ def read_scene(scene_dir: str | Path) -> Scene:
         raise SceneError(file, "<file>", "a readable scene parameter file", f"{type(exc).__name__}: {exc}") from None
     tables = parse_parameters(file, data)
     bodies_file = scene_dir / tables["bodies"]["file"]
+    if not bodies_file.is_file():
+        raise SceneError(file, "bodies.file", "the name of an existing file in the scene folder",
+                         tables["bodies"]["file"])
     bodies = read_bodies(bodies_file, tables["material_names"], tables["materials"])
     _check_inside_box(bodies_file, bodies, tables["walls"])
     return Scene(path=scene_dir, materials=tables["materials"], material_names=tables["material_names"],
@@ -174,7 +177,7 @@ def _read_materials(file, tab) -> dict[str, Material]:
     for name, m in tab.items():
         p = f"materials.{name}."
         kind = m.get("kind") if isinstance(m, dict) else None
-        if kind not in schema.MATERIALS:
+        if not isinstance(kind, str) or kind not in schema.MATERIALS:
             raise SceneError(file, p + "kind", "one of " + ", ".join(map(repr, schema.MATERIALS)), kind)
         v = schema.validate(file, p, m, schema.MATERIALS[kind])
         if kind == "neo_hookean" and v["element"] == "T3" and v["volumetric"] == "mean_dilatation":

@@ -92,3 +92,33 @@ def test_resume_refuses_a_history_of_other_columns(tmp_path):
     path.write_text("time,step,phi\n1.0,1,0.8\n")
     with pytest.raises(OutputFolderError, match="history.csv.*header"):
         History(path, resume_step=1)
+
+
+def _holder(out: Path) -> subprocess.Popen:
+    """Another process that holds the output folder's lock until killed."""
+    code = ("import sys, time; from compute import output_folder; output_folder.acquire(sys.argv[1]); "
+            "print('held', flush=True); time.sleep(600)")
+    proc = subprocess.Popen([sys.executable, "-c", code, str(out)], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "held"
+    return proc
+
+
+def test_two_computes_cannot_write_one_folder(tmp_path):
+    scene = _scene(tmp_path / "scene")
+    out = tmp_path / "out"
+    holder = _holder(out)
+    try:
+        second = subprocess.run([sys.executable, "-m", "compute", str(scene), "--out", str(out)],
+                                capture_output=True, text=True)
+        assert second.returncode == 2
+        assert "locked by another process" in second.stderr and "--wait" in second.stderr
+        assert sorted(p.name for p in out.iterdir()) == [".lock"]  # it wrote nothing
+        waiting = subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out), "--wait"],
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        time.sleep(2.0)
+        assert waiting.poll() is None and not (out / "history.csv").exists()  # waiting, not writing
+    finally:
+        holder.kill()
+        holder.wait()
+    assert waiting.wait(timeout=300) == 0, waiting.stderr.read()
+    assert (out / "COMPLETE").exists() or (out / "INCOMPLETE").exists()
