@@ -82,7 +82,8 @@ class Run:
 
     # --- the program -------------------------------------------------------------------
     def execute(self) -> State:
-        """Run all remaining stages; on a numerical failure keep what was written and re-raise."""
+        """Run all remaining stages; on a numerical failure (an overflow included) keep what was
+        written, write FAILED with the diagnosis and raise SimulationError."""
         try:
             if self.scene.walls.control == "velocity":
                 self._velocity_stage()
@@ -93,11 +94,13 @@ class Run:
             done = summary.finish(self.out, self.scene)
             if done["status"] != "complete":
                 self.log("WARNING: run INCOMPLETE: " + summary.incomplete_reasons(done).replace("\n", "; "))
-        except SimulationError as exc:
+        except (SimulationError, OverflowError, FloatingPointError) as exc:
+            failure = exc if isinstance(exc, SimulationError) else SimulationError(
+                f"step {self.state.step + 1}: numerical overflow ({type(exc).__name__}: {exc})")
             self.history.flush()
-            (self.out / "FAILED").write_text(f"{exc}\n")
-            self.log(f"run stopped: {exc}")
-            raise
+            (self.out / "FAILED").write_text(f"{failure}\n")
+            self.log(f"run stopped: {failure}")
+            raise failure from None
         finally:
             self.history.close()
             output_folder.release(self._lock)

@@ -205,3 +205,23 @@ def test_out_in_a_folder_that_cannot_be_written(scene, tmp_path, capsys, monkeyp
     assert main([str(scene), "--out", str(tmp_path / "ro" / "out")]) == 2
     err = capsys.readouterr().err
     assert "field '--out': expected a folder this user can create and write in" in err and "Permission denied" in err
+
+
+def test_an_overflow_mid_run_stops_with_a_diagnosis(scene, tmp_path, monkeypatch):
+    from compute.errors import SimulationError
+    from compute.run import Run
+    from compute.stepping.moreau_jean import Stepper
+
+    real = Stepper.step
+
+    def overflowing(self, state, *a):
+        if state.step == 7:
+            raise OverflowError("cannot convert float infinity to integer")
+        return real(self, state, *a)
+
+    monkeypatch.setattr(Stepper, "step", overflowing)
+    with pytest.raises(SimulationError, match="step 8: numerical overflow"):
+        Run(scene, tmp_path / "out", log=lambda m: None).execute()
+    assert "numerical overflow" in (tmp_path / "out" / "FAILED").read_text()
+    steps = np.loadtxt(tmp_path / "out" / "history.csv", delimiter=",", skiprows=1, usecols=1)
+    assert np.array_equal(steps, np.arange(1, 8))  # what was computed before is kept

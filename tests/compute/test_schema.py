@@ -58,3 +58,13 @@ def test_pre_refuses_a_misspelt_or_missing_setting():
         overridden(p, {"solver.timestep": 0.1})
     with pytest.raises(SceneError, match="loading.pressures"):
         _minimal(pressures=[-1.0])
+
+
+def test_formats_doc_example_is_a_valid_scene():
+    import tomllib
+
+    from compute.scene import parse_parameters
+
+    text = (ROOT / "docs" / "FORMATS.md").read_text()
+    example = text.split("```toml\n", 1)[1].split("```", 1)[0]
+    parse_parameters("docs/FORMATS.md", tomllib.loads(example))
