@@ -13,12 +13,13 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from compute import output, output_folder, summary
-from compute.errors import SimulationError
+from compute.errors import OutputFolderError, SimulationError
 from compute.model import Model
 from compute.scene import read_scene
 from compute.state import State
@@ -58,8 +59,11 @@ class Run:
         (self.out / "checkpoint").mkdir(exist_ok=True)
         ckpt = self.out / CHECKPOINT
         if resume and ckpt.is_file():
+            self._check_same_scene()
             with np.load(ckpt) as data:
                 state = State.from_arrays(dict(data))
+            if state.q.shape != (self.model.n_dofs,):
+                raise OutputFolderError(ckpt, "q", f"the {self.model.n_dofs} dofs of the scene's model", state.q.shape)
             for name in summary.MARKERS:
                 (self.out / name).unlink(missing_ok=True)
             rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
@@ -79,6 +83,18 @@ class Run:
         shutil.copy(self.scene.path / "scene.toml", self.out / "scene.toml")
         output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, [])
         return self.model.initial_state()
+
+    def _check_same_scene(self) -> None:
+        """A run resumes only the scene it was started from (its copy OUT/scene.toml)."""
+        started = self.out / "scene.toml"
+        if not started.is_file():
+            return
+        before = tomllib.loads(started.read_text())
+        if before != self.scene.raw:
+            changed = sorted(_changed_keys(before, self.scene.raw))
+            raise OutputFolderError(started, changed[0], f"the parameters of the scene being resumed "
+                                    f"(changed: {', '.join(changed)}); run without --resume or into another folder",
+                                    _dotted(self.scene.raw, changed[0]))
 
     # --- the program -------------------------------------------------------------------
     def execute(self) -> State:
@@ -202,6 +218,19 @@ class Run:
         tmp = path.with_name("state.tmp.npz")
         np.savez(tmp, **self.state.to_arrays())
         os.replace(tmp, path)
+
+
+def _changed_keys(a, b, prefix: str = "") -> list[str]:
+    """Dotted names of the values that differ between two parsed TOML documents."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [k for key in sorted(set(a) | set(b)) for k in _changed_keys(a.get(key), b.get(key), prefix + key + ".")]
+    return [] if a == b else [prefix.rstrip(".")]
+
+
+def _dotted(doc, name: str):
+    for part in name.split("."):
+        doc = doc.get(part) if isinstance(doc, dict) else None
+    return doc
 
 
 def build_model(scene) -> Model:

@@ -122,3 +122,13 @@ def test_two_computes_cannot_write_one_folder(tmp_path):
         holder.wait()
     assert waiting.wait(timeout=300) == 0, waiting.stderr.read()
     assert (out / "COMPLETE").exists() or (out / "INCOMPLETE").exists()
+
+
+def test_resume_refuses_a_changed_scene(tmp_path):
+    scene = _scene(tmp_path / "scene")
+    out = tmp_path / "out"
+    subprocess.run([sys.executable, "-m", "compute", str(scene), "--out", str(out)], check=True, capture_output=True)
+    toml = scene / "scene.toml"
+    toml.write_text(toml.read_text().replace("time_step = 0.1", "time_step = 0.2"))
+    with pytest.raises(OutputFolderError, match=r"out/scene.toml: field 'solver.time_step'.*changed: solver.time_step"):
+        run(scene, out, resume=True, log=lambda m: None)
