@@ -31,7 +31,9 @@ Dask task itself failed, e.g. its worker died repeatedly). A run that fails neve
 others. Runs with OUT/FAILED are skipped by later dispatches unless ``retry_failed``.
 
 Every outcome is appended, as one JSON object per line, to ``log_file`` when given (the study's
-record of what ran when).
+record of what ran when). While runs are going, the overall progress (ended runs plus the stage
+fractions of the running ones) and each running run's stage, P and φ are shown, read from the
+runs' OUT/progress.json (:mod:`compute.progress`).
 """
 
 from __future__ import annotations
@@ -46,9 +48,12 @@ from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from compute.progress import Display, read_progress
+
 __all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "run_status"]
 
 LOG = "compute.log"
+POLL = 2.0  # seconds between two looks at the running runs' progress
 CHILD_ALREADY_COMPLETE = 10  # child exit code: another process completed the run meanwhile
 _CHILD_CODES = {0: "complete", CHILD_ALREADY_COMPLETE: "skipped", 2: "failed", 3: "failed", 1: "failed"}
 _THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -73,6 +78,21 @@ class RunResult:
     wall_time: float = 0.0
     resumed: bool = False
     message: str = ""
+
+
+def _show_progress(display: Display, ended: int, running: list[RunSpec]) -> None:
+    """Overall progress: ended runs plus the stage fractions of the running ones (their
+    OUT/progress.json), and each running run's stage, P and φ."""
+    done, parts = float(ended), []
+    for spec in running:
+        r = read_progress(spec.out)
+        if r is None:
+            parts.append(f"{spec.name} starting")
+            continue
+        done += min(r["stage"], r["stages"]) / max(r["stages"], 1)
+        parts.append(f"{spec.name} stage {min(r['stage'] + 1, r['stages'])}/{r['stages']} P {r['pressure']:.3g} "
+                     f"phi {r['phi']:.4f}")
+    display.update(done, f"{ended}/{display.total} runs ended; " + "; ".join(parts))
 
 
 def run_status(out: str | Path) -> str:
@@ -157,14 +177,17 @@ def local_cluster(n_workers: int = 2, threads_per_worker: int = 1):
 
 def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: int = 2, threads: int = 1,
              retry_failed: bool = False, log: Callable[[str], None] | None = print,
-             log_file: str | Path | None = None) -> list[RunResult]:
+             log_file: str | Path | None = None, progress: bool | Display = True) -> list[RunResult]:
     """Run every run of ``runs`` not yet complete, at most one per worker thread at a time,
     started in the order of ``runs`` (put the longest first).
 
     scheduler: a Dask scheduler address (``tcp://host:8786``); None starts
     :func:`local_cluster` (``n_workers`` workers, one thread each) for the duration of the call.
     threads: numba/BLAS threads per run. Returns one :class:`RunResult` per run, in the order
-    of ``runs``; also appended to ``log_file`` (JSON lines) when given.
+    of ``runs``; also appended to ``log_file`` (JSON lines) when given. ``progress``: show the
+    overall progress and each running run's stage (:mod:`compute.progress`: a bar on a terminal,
+    a plain line every 30 s otherwise; or the Display given), read from the runs' OUT/progress.json
+    every ``POLL`` s.
     """
     runs = list(runs)
     names = [r.name for r in runs]
@@ -192,7 +215,7 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
         else:
             todo.append(r)
     if todo:
-        from dask.distributed import Client, as_completed
+        from dask.distributed import Client, wait
 
         cluster = None if scheduler else local_cluster(n_workers)
         try:
@@ -202,7 +225,8 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                 # the client hands out one run per worker thread and the next one when a run ends:
                 # runs start in the order given, and none waits behind a long run on a busy worker
                 # while another worker is idle (Dask may otherwise place tasks that way)
-                queue, running, done = list(todo), {}, as_completed()
+                queue, running = list(todo), {}
+                shown = progress if isinstance(progress, Display) else Display(len(todo), "study") if progress else None
 
                 def fill() -> None:
                     slots = max(1, sum(client.nthreads().values()))
@@ -211,16 +235,25 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                         future = client.submit(execute_run, str(spec.scene), str(spec.out), threads, retry_failed,
                                                key=f"run-{spec.name}-{time.time_ns()}", pure=False)
                         running[future] = spec
-                        done.add(future)
 
                 fill()
-                for future in done:
-                    spec = running.pop(future)
+                while running:
                     try:
-                        record(RunResult(spec.name, **future.result()))
-                    except Exception as exc:  # the task itself died (worker lost, ...)
-                        record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
+                        wait(list(running), timeout=POLL, return_when="FIRST_COMPLETED")
+                    except TimeoutError:
+                        pass
+                    for future in [f for f in running if f.done()]:
+                        spec = running.pop(future)
+                        try:
+                            record(RunResult(spec.name, **future.result()))
+                        except Exception as exc:  # the task itself died (worker lost, ...)
+                            record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
                     fill()
+                    if shown is not None:
+                        _show_progress(shown, len(todo) - len(queue) - len(running), list(running.values()))
+                if shown is not None:
+                    shown.mark(f"{len(todo)}/{len(todo)} runs ended")
+                    shown.close()
         finally:
             if cluster is not None:
                 cluster.close()

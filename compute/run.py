@@ -21,6 +21,7 @@ import numpy as np
 from compute import output, output_folder, summary
 from compute.errors import OutputFolderError, SimulationError
 from compute.model import Model
+from compute.progress import Display, RunProgress
 from compute.scene import read_scene
 from compute.state import State
 from compute.stepping import load_control
@@ -36,15 +37,17 @@ class Run:
 
     The output folder's lock (:mod:`compute.output_folder`) is held from construction until
     ``execute`` returns; ``wait``: wait for another compute writing the folder instead of
-    refusing."""
+    refusing. Progress (:mod:`compute.progress`) goes to ``display`` (default: stderr, a bar on a
+    terminal, plain lines otherwise) and to OUT/progress.json."""
 
     def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None,
-                 wait: bool = False):
+                 wait: bool = False, display: Display | None = None):
         self.scene = read_scene(scene_dir)  # a bad scene stops before anything is written
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
         self.stepper = Stepper(self.model)
+        self._display = display
         self._lock = output_folder.acquire(self.out, wait)  # held until execute() returns
         try:
             self.state = self._start(resume)
@@ -100,6 +103,9 @@ class Run:
     def execute(self) -> State:
         """Run all remaining stages; on a numerical failure (an overflow included) keep what was
         written, write FAILED with the diagnosis and raise SimulationError."""
+        stages = 1 if self.scene.walls.control == "velocity" else len(self.scene.loading.pressures)
+        self.progress = RunProgress(self.out, stages, self._display)
+        status = "failed"
         try:
             if self.scene.walls.control == "velocity":
                 self._velocity_stage()
@@ -108,6 +114,7 @@ class Run:
                     self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
             done = summary.finish(self.out, self.scene)
+            status = done["status"]
             if done["status"] != "complete":
                 self.log("WARNING: run INCOMPLETE: " + summary.incomplete_reasons(done).replace("\n", "; "))
         except (SimulationError, OverflowError, FloatingPointError) as exc:
@@ -118,6 +125,7 @@ class Run:
             self.log(f"run stopped: {failure}")
             raise failure from None
         finally:
+            self.progress.finish(status)
             self.history.close()
             output_folder.release(self._lock)
         return self.state
@@ -140,6 +148,7 @@ class Run:
                          f"{st.stage_steps} steps; frame written with equilibrated = 0")
                 break
             self._periodic_checkpoint()
+        self.progress.stage_done()
         st.stage += 1
         st.stage_steps = 0
         st.phi_check = np.nan
@@ -153,6 +162,7 @@ class Run:
             self._record(self.stepper.step(st, 0.0, load.velocity), 0.0, 0)
             self._periodic_checkpoint()
         self.write_frame(0.0, equilibrated=False)
+        self.progress.stage_done()
         st.stage = 1
 
     def _record(self, rep, pressure: float, halvings: int) -> None:
@@ -161,13 +171,15 @@ class Run:
         self.last_contacts = rep.contacts
         st.stage_steps += 1
         b = self.model.bounds(st.q)
+        phi = self.model.phi(st.q)
         self.history.append(dict(
             time=st.time, step=st.step, stage=st.stage, pressure_applied=pressure,
-            xmin=b[0], xmax=b[1], ymin=b[2], ymax=b[3], phi=self.model.phi(st.q), nlgs_sweeps=rep.sweeps,
+            xmin=b[0], xmax=b[1], ymin=b[2], ymax=b[3], phi=phi, nlgs_sweeps=rep.sweeps,
             nlgs_residual=rep.residual, kinetic_energy=self.model.kinetic_energy(st.v),
             inertial_number=self._inertial(pressure), n_contacts=rep.n_contacts,
             max_penetration=rep.max_penetration, newton_iterations=rep.newton_iterations, cuts=rep.cuts,
             load_halvings=halvings))
+        self.progress.step(st.stage, pressure, phi, st.step, st.stage_steps)
         out = self.scene.output
         if out.every_steps and st.step % out.every_steps == 0:
             self.write_frame(pressure, equilibrated=False)

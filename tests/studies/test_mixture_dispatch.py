@@ -39,3 +39,21 @@ def test_failure_isolated_and_complete_runs_skipped(tmp_path):
 def test_names_must_be_unique(tmp_path):
     with pytest.raises(ValueError, match="unique"):
         dispatch([RunSpec("a", tmp_path, tmp_path / "1"), RunSpec("a", tmp_path, tmp_path / "2")], log=None)
+
+
+def test_progress_of_the_runs_in_plain_lines(tmp_path):
+    import io
+
+    from compute.progress import Display
+
+    runs = [RunSpec(f"r{k}", lattice_scene(tmp_path / f"r{k}" / "scene", pressures=(1.0, 2.0)), tmp_path / f"r{k}" / "out")
+            for k in range(2)]
+    stream = io.StringIO()
+    shown = Display(2, "study", stream=stream, interactive=False, interval=0.0)
+    results = dispatch(runs, n_workers=2, log=None, progress=shown)
+    assert all(r.status == "complete" for r in results)
+    lines = stream.getvalue().splitlines()
+    assert all(line.startswith("study: ") for line in lines) and lines[-1] == "study: 2/2 runs ended"
+    assert any("runs ended;" in line for line in lines)  # one line per look at the running runs
+    for r in runs:
+        assert json.loads((r.out / "progress.json").read_text())["status"] == "complete"
