@@ -24,9 +24,7 @@ Writes benchmarks/results/single_particle_cost.{md,csv,png}.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import csv
-import importlib.util
 import io
 import sys
 import tempfile
@@ -35,22 +33,13 @@ from pathlib import Path
 
 import numpy as np
 
+from compute.progress import Display
+
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "studies" / "single_particle"
 REFERENCE = STUDY / "data" / "reference_T6g.csv"
 RESULTS = Path(__file__).resolve().parent / "results"
 PHI_COMPARE = 0.95
-
-
-def study_module(name: str):
-    """studies/single_particle/<name>.py as module sp_<name> (its file name shadows a package)."""
-    spec = importlib.util.spec_from_file_location(f"sp_{name}", STUDY / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-sp_pre, sp_compute, sp_post = study_module("pre"), study_module("compute"), study_module("post")
 
 
 def reference() -> tuple[np.ndarray, np.ndarray]:
@@ -72,19 +61,25 @@ def errors(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.ndarra
 
 
 def run_case(work: Path, element: str, n: int, h: float, ref) -> dict:
+    from compute.errors import SimulationError
+    from compute.run import Run
+    from post.single_particle import curve
+    from pre.single_particle import write
+
     d = work / f"{element}_{n}_h{h:g}"
-    sp_pre.write(d / "scene", element=element, elements=n, time_step=h)
-    buf = io.StringIO()
+    write(d / "scene", element=element, elements=n, time_step=h)
     t0 = time.perf_counter()
-    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(io.StringIO()):
-        status = sp_compute.main(["--workdir", str(d)])
-    seconds = time.perf_counter() - t0
-    line = buf.getvalue().strip().splitlines()[-1] if buf.getvalue().strip() else ""
-    steps = int(line.split()[0]) if line.split()[1:2] == ["steps"] else -1
-    row = dict(element=element, elements=n, h=h, status="ok" if status == 0 else f"failed ({status})",
-               seconds=seconds, steps=steps, err_phi=np.nan, err_P=np.nan, stages=0)
+    run = Run(d / "scene", d / "out", log=lambda m: None, display=Display(1, stream=io.StringIO()))
     try:
-        _, p, phi = sp_post.curve(d / "out")
+        run.execute()
+        status = "ok"
+    except SimulationError as exc:
+        status = f"failed ({exc})"
+    seconds = time.perf_counter() - t0
+    row = dict(element=element, elements=n, h=h, status=status, seconds=seconds, steps=run.state.step,
+               err_phi=np.nan, err_P=np.nan, stages=0)
+    try:
+        _, p, phi = curve(d / "out")
         row["stages"] = len(p)
         row["err_phi"], row["err_P"] = errors(p, phi, *ref)
     except Exception as exc:  # noqa: BLE001 - a failed case is reported, not fatal

@@ -14,7 +14,7 @@ soft groups' arrays per soft body. The exponent of per-step cost against the num
 bodies is fitted over N >= 144.
 
 ``compare``: ``python -m compute`` on the 144-disk κ = 0.5, μ = 0.2, T3 × 92 scene (stages P/E =
-0.01, 0.03, 0.1), prepared by ``studies/mixture_compaction/pre.py --n 144 --kappa 0.5 --mu 0.2
+0.01, 0.03, 0.1), prepared by ``python -m studies.mixture_compaction.pre --n 144 --kappa 0.5 --mu 0.2
 --element T3 --pressures 0.01 0.03 0.1``, from this checkout and from a git worktree of ``--before``,
 alternately, ``--repeats`` times each; wall time of the whole command (interpreter start,
 imports, numba's cached kernels, all stages); φ and the pressure from contacts and from walls of
@@ -173,7 +173,10 @@ def compare(args) -> None:
     if not (scene / "scene.toml").is_file():
         env = _child_env(args.threads)
         env["PYTHONPATH"] = str(tree)
-        subprocess.run([sys.executable, str(tree / "studies" / "mixture_compaction" / "pre.py"), "--workdir",
+        # trees from before the studies became a package ran their scripts by path
+        pre = (["-m", "studies.mixture_compaction.pre"] if (tree / "studies" / "__init__.py").is_file()
+               else [str(tree / "studies" / "mixture_compaction" / "pre.py")])
+        subprocess.run([sys.executable, *pre, "--workdir",
                         str(study), "--n", "144", "--kappa", "0.5", "--mu", "0.2", "--element", "T3", "--pressures",
                         "0.01", "0.03", "0.1"], cwd=tree, env=env, check=True, capture_output=True)
     times: dict[str, list[float]] = {"before": [], "after": []}
@@ -203,7 +206,7 @@ def compare(args) -> None:
              f"`python benchmarks/soft_step_cost.py compare --before {args.before} --repeats {args.repeats} "
              f"--threads {args.threads} --prepare-with {args.prepare_with}`: `python -m compute` wall time, the two "
              f"timed alternately after an untimed round; the scene prepared by the {args.prepare_with} tree's "
-             "`studies/mixture_compaction/pre.py --n 144 --kappa 0.5 --mu 0.2 --element T3 --pressures 0.01 0.03 0.1`.",
+             "`python -m studies.mixture_compaction.pre --n 144 --kappa 0.5 --mu 0.2 --element T3 --pressures 0.01 0.03 0.1`.",
              "", f"Newton iterations (whole run): before {iters['before']}, after {iters['after']}; time per Newton "
              f"iteration (median run / iterations) before {np.median(times['before']) / max(iters['before'], 1) * 1e3:.1f} ms, "
              f"after {np.median(times['after']) / max(iters['after'], 1) * 1e3:.1f} ms.", "",
@@ -246,7 +249,7 @@ def main(argv=None) -> None:
     c.add_argument("--repeats", type=int, default=3)
     c.add_argument("--threads", type=int, default=1)
     c.add_argument("--prepare-with", choices=("after", "before"), default="after",
-                   help="the tree whose studies/mixture_compaction/pre.py prepares the scene (default after)")
+                   help="the tree whose studies.mixture_compaction.pre prepares the scene (default after)")
     c.add_argument("--workdir", type=Path, required=True)
     one = sub.add_parser("_one")
     one.add_argument("scene", type=Path)

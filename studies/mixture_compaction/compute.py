@@ -8,15 +8,11 @@ outcome is appended to DIR/dispatch.jsonl (one JSON object per line: time, name,
 wall_time, resumed, message). Exit status 0 when every run is complete, 1 otherwise.
 """
 
+import argparse
+import json
 import sys
+import time
 from pathlib import Path
-
-# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-import argparse  # noqa: E402
-import json  # noqa: E402
-import time  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -24,21 +24,17 @@ THE PAPER'S VALUE, and φ_p,max = 1 (an assumption: an incompressible disk fills
 flagged as such in every output.
 """
 
+import argparse
+import csv
+import json
+import math
+import os
 import sys
 from pathlib import Path
 
-# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import argparse  # noqa: E402
-import csv  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import os  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from compute.dispatch import run_status  # noqa: E402
+from compute.dispatch import run_status
 
 REPO = Path(__file__).resolve().parents[2]
 SINGLE_PARTICLE_CANDIDATES = ("studies/single_particle/results/refinement_fits.csv",

@@ -9,18 +9,14 @@ runs and the jammed rigid scenes) and DIR/runs/k<κ>_mu<μ>_s<seed>/scene. Reduc
 diameter 1, density 1, E = 1 (soft disks; rigid ones have E = infinity).
 """
 
+import argparse
+import json
+import shutil
 import sys
+import time
 from pathlib import Path
 
-# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-import argparse  # noqa: E402
-import json  # noqa: E402
-import shutil  # noqa: E402
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
+import numpy as np
 
 # The small default: the whole study (4 kappa x 2 mu, one seed) in about 10 minutes on 2 cores
 # (measured: README.md).

@@ -1,13 +1,7 @@
 """Stage 2 of the rigid jamming study: runs DIR/scene into DIR/out (frames, history, checkpoints)."""
 
-import sys
+import argparse
 from pathlib import Path
-
-# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-
-import argparse  # noqa: E402
 from compute.run import run
 
 

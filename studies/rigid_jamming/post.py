@@ -1,14 +1,7 @@
 """Stage 3 of the rigid jamming study: measures of every frame (phi, Z, P from contacts and from
 walls) in DIR/out/post/measures.csv, the force chains and phi, Z against P as PNGs."""
 
-import sys
-from pathlib import Path
-
-# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-
-import argparse  # noqa: E402
+import argparse
 import tomllib
 from pathlib import Path
 

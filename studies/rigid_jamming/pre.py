@@ -1,14 +1,7 @@
 """Stage 1 of the rigid jamming study: a polydisperse rigid-disk packing jammed by a gentle
 stress-controlled compression (run with the compute stage), written as DIR/scene."""
 
-import sys
-from pathlib import Path
-
-# This folder's pre.py / compute.py / post.py would shadow the toolkit's packages of those names.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-
-import argparse  # noqa: E402
+import argparse
 
 from pre.jamming import jammed_rigid_scene
 

@@ -11,8 +11,6 @@ import sys
 import time
 from pathlib import Path
 
-# this script is called compute.py: keep its folder off sys.path so that `compute` is the package
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 
 def main(argv=None) -> int:

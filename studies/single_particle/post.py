@@ -18,54 +18,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
-
-# this script is called post.py: keep its folder off sys.path so that `post` is the package
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-
-def young_modulus(out: Path) -> float:
-    """E of the (single) neo-Hookean material of the run (out/scene.toml, copied by compute)."""
-    data = tomllib.loads((out / "scene.toml").read_text())
-    soft = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"]
-    if len(soft) != 1:
-        raise SystemExit(f"{out / 'scene.toml'}: expected one neo_hookean material, found {len(soft)}")
-    return float(soft[0]["young"])
-
-
-def label(out: Path) -> str:
-    data = tomllib.loads((out / "scene.toml").read_text())
-    m = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"][0]
-    try:
-        import meshio
-
-        n = sum(len(c.data) for c in meshio.read(out.parent / "scene" / "bodies.vtu").cells)
-    except Exception:  # noqa: BLE001 - the label is cosmetic
-        n = "?"
-    return f"{m['element']}, {n} elements"
-
-
-def curve(out: Path):
-    """(rows, equilibrated P_walls/E (n,), phi_p (n,)) of an output folder."""
-    from post.table import measure_output
-
-    rows = measure_output(out, min_contacts=1)
-    E = young_modulus(out)
-    eq = [r for r in rows if r["equilibrated"]]
-    return rows, np.array([r["P_walls"] for r in eq]) / E, np.array([r["phi"] for r in eq])
-
-
-def fit(p: np.ndarray, phi: np.ndarray, p_max: float, phi_max: float):
-    from post.fits import fit_single_particle
-
-    sel = (p <= p_max) & (phi <= phi_max)
-    if sel.sum() < 3:
-        raise SystemExit(f"fit of Eq. 2: fewer than 3 equilibrated frames with P/E <= {p_max} and "
-                         f"phi <= {phi_max}")
-    return fit_single_particle(phi[sel], p[sel]), int(sel.sum())
 
 
 def main(argv=None) -> int:
@@ -77,13 +32,17 @@ def main(argv=None) -> int:
     ap.add_argument("--compare", action="append", default=[], metavar="DIR",
                     help="another study folder to draw in the figure (repeatable)")
     a = ap.parse_args(argv)
+    from post.single_particle import curve, fit, mesh_label
     from post.table import write_measures
 
     out = Path(a.workdir) / "out"
     rows, p, phi = curve(out)
     target = out / "post"
     write_measures(rows, target / "measures.csv")
-    result, n = fit(p, phi, a.fit_p_max, a.fit_phi_max)
+    try:
+        result, n = fit(p, phi, a.fit_p_max, a.fit_phi_max)
+    except ValueError as exc:
+        ap.error(str(exc))
     info = {"b": result.params["b"], "phi_p_max": result.params["phi_p_max"],
             "stderr": result.stderr, "phi_range": result.phi_range, "n_points": n,
             "rms_relative": result.rms_relative, "phi_p0": float(np.pi / 4),
@@ -92,10 +51,10 @@ def main(argv=None) -> int:
 
     from post.plots import new_figure, plot_single_particle, save_figure
 
-    curves = {label(out): (p, phi)}
+    curves = {mesh_label(out): (p, phi)}
     for other in a.compare:
         o = Path(other) / "out"
-        curves[label(o)] = curve(o)[1:]
+        curves[mesh_label(o)] = curve(o)[1:]
     fig, axes = new_figure(size=(5.5, 4.2))
     ax = axes[0, 0]
     plot_single_particle(ax, curves, result)

@@ -20,7 +20,7 @@ With --data DIR it also writes DIR/reference_T6g.csv (the finest graded T6 curve
 DIR/default_T6_92.csv (the default mesh), the regression data of
 tests/deformable/test_single_particle_regression.py.
 
-    python studies/single_particle/refine.py --workdir /tmp/sp_refine [--jobs 2] [--levels T6g:1000:960,...]
+    python -m studies.single_particle.refine --workdir /tmp/sp_refine [--jobs 2] [--levels T6g:1000:960,...]
 """
 
 from __future__ import annotations
@@ -35,8 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
+ROOT = Path(__file__).resolve().parents[2]
 
 # series -> levels (target elements, boundary segments or None for a uniform mesh)
 SERIES = {"T3": [(n, None) for n in (30, 92, 300, 1000, 3000)],
@@ -59,18 +58,20 @@ def level_name(series: str, n: int, segments: int | None) -> str:
 
 
 def run_level(work: Path, series: str, n: int, segments: int | None) -> Path:
+    """pre, compute and post of one level in WORKDIR/<level>/, each a process (run in parallel)."""
     d = work / level_name(series, n, segments)
+
+    def stage(name: str, *args: str, **kw) -> None:
+        subprocess.run([sys.executable, "-m", f"studies.single_particle.{name}", "--workdir", str(d), *args],
+                       cwd=ROOT, check=True, **kw)
+
     if not (d / "out" / "COMPLETE").is_file() and not (d / "out" / "post" / "fit.json").is_file():
-        py = sys.executable
         extra = [] if segments is None else ["--boundary-segments", str(segments), "--p-max", repr(GRADED_P_MAX),
                                              "--stages", str(GRADED_STAGES), "--time-step", repr(GRADED_TIME_STEP)]
-        subprocess.run([py, str(HERE / "pre.py"), "--workdir", str(d), "--element-type", series[:2],
-                        "--elements", str(n), *extra], check=True, stdout=subprocess.DEVNULL)
+        stage("pre", "--element-type", series[:2], "--elements", str(n), *extra, stdout=subprocess.DEVNULL)
         with open(d / "compute.log", "w") as log:
-            subprocess.run([py, str(HERE / "compute.py"), "--workdir", str(d)], check=True, stdout=log,
-                           stderr=subprocess.STDOUT)
-    subprocess.run([sys.executable, str(HERE / "post.py"), "--workdir", str(d)], check=True,
-                   stdout=subprocess.DEVNULL)
+            stage("compute", stdout=log, stderr=subprocess.STDOUT)
+    stage("post", stdout=subprocess.DEVNULL)
     return d
 
 

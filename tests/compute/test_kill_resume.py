@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pre import single_particle
 from tests.compute.test_restart import _scene as rigid_scene
-from tests.deformable import scenes
 
 # runs the scene and kills itself with SIGKILL right after the given moment
 KILLER = textwrap.dedent("""
@@ -37,7 +37,7 @@ KILLER = textwrap.dedent("""
 
 
 def _soft_scene(folder: Path) -> Path:
-    scenes.study_module("pre").write(folder, element="T3", elements=40, pressures=[1e-3, 1e-2, 3e-2])
+    single_particle.write(folder, element="T3", elements=40, pressures=[1e-3, 1e-2, 3e-2])
     toml = folder / "scene.toml"
     toml.write_text(toml.read_text().replace("checkpoint_every_steps = 1000", "checkpoint_every_steps = 4"))
     return folder

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -12,22 +11,14 @@ ROOT = Path(__file__).resolve().parents[2]
 E, NU, RHO = 1.0, 0.495, 1.0
 
 
-def study_module(name: str):
-    """studies/single_particle/<name>.py as a module (the scripts are not a package)."""
-    path = ROOT / "studies" / "single_particle" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"single_particle_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def disk(n: int = 92, element: str = "T6", centre=(0.0, 0.0), radius: float = 1.0, turn: float = 0.0):
     """(points (m, 2), cells) of a gmsh disk mesh, a boundary segment centred on the +x axis
     (then turned by ``turn`` radians), scaled and placed."""
     from pre.mesh import reference_disk_mesh
+    from pre.single_particle import face_on
 
     mesh = reference_disk_mesh(n, element)
-    p = study_module("pre").face_on(mesh.points, mesh.boundary_nodes)
+    p = face_on(mesh.points, mesh.boundary_nodes)
     c, s = np.cos(turn), np.sin(turn)
     p = p @ np.array([[c, -s], [s, c]]).T
     return p * radius + np.asarray(centre, float), np.array(mesh.cells)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from compute.run import Run
+from pre import single_particle
 from tests.deformable import scenes
 
 
@@ -13,8 +14,7 @@ class Stop(Exception):
 
 
 def test_resume_continues_a_deformable_run(tmp_path):
-    pre = scenes.study_module("pre")
-    pre.write(tmp_path / "scene", element="T3", pressures=[1e-3, 1e-2, 3e-2])
+    single_particle.write(tmp_path / "scene", element="T3", pressures=[1e-3, 1e-2, 3e-2])
     toml = tmp_path / "scene" / "scene.toml"
     toml.write_text(toml.read_text().replace("checkpoint_every_steps = 1000", "checkpoint_every_steps = 3"))
     full = Run(tmp_path / "scene", tmp_path / "full", log=lambda m: None).execute()

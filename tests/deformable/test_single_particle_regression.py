@@ -19,7 +19,7 @@ import numpy as np
 from tests.deformable import scenes
 
 DATA = scenes.ROOT / "studies" / "single_particle" / "data"
-STUDY = scenes.ROOT / "studies" / "single_particle"
+ROOT = scenes.ROOT
 TOLERANCE = 0.015
 
 
@@ -30,7 +30,7 @@ def read(path):
 
 def test_default_mesh_curve(tmp_path):
     for script in ("pre", "compute", "post"):
-        subprocess.run([sys.executable, str(STUDY / f"{script}.py"), "--workdir", str(tmp_path)], check=True,
+        subprocess.run([sys.executable, "-m", f"studies.single_particle.{script}", "--workdir", str(tmp_path)], cwd=ROOT, check=True,
                        capture_output=True)
     rows = [r for r in csv.DictReader(open(tmp_path / "out" / "post" / "measures.csv")) if r["equilibrated"] == "1"]
     p = np.array([float(r["P_walls"]) for r in rows])

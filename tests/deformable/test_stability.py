@@ -8,6 +8,7 @@ import pytest
 
 from compute.errors import SimulationError
 from compute.run import Run
+from pre import single_particle
 from tests.deformable import scenes
 
 
@@ -24,8 +25,7 @@ def finite_history(out):
 def test_time_step_ten_times_too_large(tmp_path):
     """h = 100 (the study's quasi-static h is 10): the stages still equilibrate (steps are cut
     when Newton fails) and every frame is finite."""
-    pre = scenes.study_module("pre")
-    pre.write(tmp_path / "scene", time_step=100.0, pressures=[1e-3, 0.1])
+    single_particle.write(tmp_path / "scene", time_step=100.0, pressures=[1e-3, 0.1])
     run = Run(tmp_path / "scene", tmp_path / "out", log=lambda m: None)
     run.execute()
     finite_history(tmp_path / "out")
@@ -41,9 +41,7 @@ def equilibrium(tmp_path, name, pressures):
     """The measures (post.table) of the last equilibrated stage of the single particle run
     through ``pressures``, and the run's history rows."""
     from post.table import measure_output
-
-    pre = scenes.study_module("pre")
-    pre.write(tmp_path / name / "scene", pressures=pressures)
+    single_particle.write(tmp_path / name / "scene", pressures=pressures)
     Run(tmp_path / name / "scene", tmp_path / name / "out", log=lambda m: None).execute()
     assert (tmp_path / name / "out" / "COMPLETE").is_file()
     rows = measure_output(tmp_path / name / "out", min_contacts=1)
@@ -76,8 +74,7 @@ def test_pressure_jump_is_taken_by_load_increments(tmp_path, target):
 def test_pressure_jump_to_five_is_taken_or_stopped_with_a_diagnosis(tmp_path):
     """P/E = 0.01 straight to 5: either load increments reach it, or the run stops naming the
     stage, the load increment and the body; never a NaN, and what was written stays readable."""
-    pre = scenes.study_module("pre")
-    pre.write(tmp_path / "scene", pressures=[0.01, 5.0])
+    single_particle.write(tmp_path / "scene", pressures=[0.01, 5.0])
     run = Run(tmp_path / "scene", tmp_path / "out", log=lambda m: None)
     try:
         run.execute()

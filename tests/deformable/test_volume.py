@@ -19,6 +19,7 @@ changes by 4e-5 at P/E = 1e-3 while the disk flattens by 1 % against the walls.
 import numpy as np
 import pytest
 
+from pre import single_particle
 from tests.deformable import scenes
 
 
@@ -34,8 +35,7 @@ def settle(model, stepper, state, pressure, max_steps=200, tol=1e-10):
 
 @pytest.mark.parametrize("element,n", [("T6", 92), ("T3", 92)])
 def test_area_change_is_the_2d_bulk_response(tmp_path, element, n):
-    pre = scenes.study_module("pre")
-    pre.write(tmp_path / "scene", element=element, elements=n, pressures=[1e-3], newton_tolerance=1e-10,
+    single_particle.write(tmp_path / "scene", element=element, elements=n, pressures=[1e-3], newton_tolerance=1e-10,
               nlgs_tolerance=1e-10)
     model, stepper, state = scenes.load(tmp_path / "scene")
     body = scenes.fe_body(model)

@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-STUDY = Path(__file__).resolve().parents[2] / "studies" / "mixture_compaction"
+ROOT = Path(__file__).resolve().parents[2]
+STUDY = "studies.mixture_compaction"
 TINY = ["--n", "16", "--mu", "0.2", "--seeds", "1", "--pressures", "0.001", "0.002"]
 
 
 def script(name, workdir, *extra, **kw):
-    return subprocess.run([sys.executable, str(STUDY / name), "--workdir", str(workdir), *extra],
-                          check=True, capture_output=True, text=True, **kw)
+    return subprocess.run([sys.executable, "-m", f"{STUDY}.{name}", "--workdir", str(workdir), *extra],
+                          cwd=ROOT, check=True, capture_output=True, text=True, **kw)
 
 
 def independent_Z(contacts_vtu: Path, n_particles: int, threshold: float = 1e-9) -> float:
@@ -42,18 +43,18 @@ def independent_Z(contacts_vtu: Path, n_particles: int, threshold: float = 1e-9)
 
 
 def test_help():
-    for name in ("pre.py", "compute.py", "post.py"):
-        out = subprocess.run([sys.executable, str(STUDY / name), "--help"], check=True, capture_output=True, text=True)
+    for name in ("pre", "compute", "post"):
+        out = subprocess.run([sys.executable, "-m", f"{STUDY}.{name}", "--help"], cwd=ROOT, check=True, capture_output=True, text=True)
         assert "--workdir" in out.stdout
-    assert "--scheduler" in subprocess.run([sys.executable, str(STUDY / "compute.py"), "--help"],
-                                           capture_output=True, text=True).stdout
+    assert "--scheduler" in subprocess.run([sys.executable, "-m", f"{STUDY}.compute", "--help"],
+                                           cwd=ROOT, capture_output=True, text=True).stdout
 
 
 def test_three_stages_end_to_end(tmp_path):
     w = tmp_path / "study"
-    script("pre.py", w, *TINY, "--kappa", "0.5")
-    script("compute.py", w, "--workers", "1")
-    post = script("post.py", w)
+    script("pre", w, *TINY, "--kappa", "0.5")
+    script("compute", w, "--workers", "1")
+    post = script("post", w)
     # b comes from the single-particle refinement table committed in the tree (same element, closest size)
     assert "refinement_fits.csv, row T3 x 92" in post.stdout
     study = json.loads((w / "study.json").read_text())
@@ -93,10 +94,10 @@ def _locked(path: Path) -> bool:
 
 def test_killed_study_finishes_only_the_missing_runs(tmp_path):
     w = tmp_path / "study"
-    script("pre.py", w, *TINY, "--kappa", "0.5", "1")
+    script("pre", w, *TINY, "--kappa", "0.5", "1")
     first, second = w / "runs" / "k1_mu0.2_s1" / "out", w / "runs" / "k0.5_mu0.2_s1" / "out"  # heaviest first
-    proc = subprocess.Popen([sys.executable, str(STUDY / "compute.py"), "--workdir", str(w), "--workers", "1"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen([sys.executable, "-m", f"{STUDY}.compute", "--workdir", str(w), "--workers", "1"],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.time() + 240
         # kill once the first run is complete and the second has checkpointed its first stage
@@ -120,7 +121,7 @@ def test_killed_study_finishes_only_the_missing_runs(tmp_path):
     frame0_mtime = os.stat(second / "frames" / "bodies_00000.vtu").st_mtime_ns
     n_logged = len((w / "dispatch.jsonl").read_text().splitlines())
 
-    script("compute.py", w, "--workers", "1")
+    script("compute", w, "--workers", "1")
     assert (second / "COMPLETE").is_file()
     assert os.stat(first / "COMPLETE").st_mtime_ns == complete_mtime  # not run again
     assert os.stat(second / "frames" / "bodies_00000.vtu").st_mtime_ns == frame0_mtime  # resumed, not restarted

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-STUDY = Path(__file__).resolve().parents[2] / "studies" / "rigid_jamming"
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _opens_in_pyvista(study: Path, n_frames: int) -> None:
@@ -28,9 +28,9 @@ def _opens_in_pyvista(study: Path, n_frames: int) -> None:
 @pytest.mark.parametrize("mu", [0.2])
 def test_three_stages_end_to_end(tmp_path, mu):
     w = str(tmp_path / "study")
-    for script, extra in (("pre.py", ["--n", "60", "--mu", str(mu), "--seed", "2"]), ("compute.py", []),
-                          ("post.py", [])):
-        subprocess.run([sys.executable, str(STUDY / script), "--workdir", w, *extra], check=True,
+    for script, extra in (("pre", ["--n", "60", "--mu", str(mu), "--seed", "2"]), ("compute", []),
+                          ("post", [])):
+        subprocess.run([sys.executable, "-m", f"studies.rigid_jamming.{script}", "--workdir", w, *extra], cwd=ROOT, check=True,
                        capture_output=True)
     out = tmp_path / "study" / "out"
     for name in ("bodies.pvd", "contacts.pvd", "walls.pvd", "history.csv", "post/measures.csv",

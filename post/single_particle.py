@@ -1,0 +1,58 @@
+"""The single-particle measures: the compaction curve of one soft disk and the fit of Eq. 2.
+
+Eq. 2 (the paper's single-particle law): P_p/E = -b ln[(φ_p,max − φ_p)/(φ_p,max − π/4)], with
+φ_p the disk's current area over the box area and P_p the mean wall pressure.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from post.errors import OutputError
+
+
+def young_modulus(out: Path) -> float:
+    """E of the (single) neo-Hookean material of the run (out/scene.toml, copied by compute)."""
+    data = tomllib.loads((out / "scene.toml").read_text())
+    soft = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"]
+    if len(soft) != 1:
+        raise OutputError(out / "scene.toml", "materials", "one neo_hookean material", len(soft))
+    return float(soft[0]["young"])
+
+
+def mesh_label(out: Path) -> str:
+    """'T6, 92 elements': the element type and count of the run's soft disk (for legends)."""
+    data = tomllib.loads((out / "scene.toml").read_text())
+    m = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"][0]
+    try:
+        import meshio
+
+        n = sum(len(c.data) for c in meshio.read(out.parent / "scene" / "bodies.vtu").cells)
+    except Exception:  # noqa: BLE001 - the label is cosmetic
+        n = "?"
+    return f"{m['element']}, {n} elements"
+
+
+def curve(out: Path):
+    """(rows, equilibrated P_walls/E (n,), phi_p (n,)) of an output folder."""
+    from post.table import measure_output
+
+    rows = measure_output(out, min_contacts=1)
+    E = young_modulus(out)
+    eq = [r for r in rows if r["equilibrated"]]
+    return rows, np.array([r["P_walls"] for r in eq]) / E, np.array([r["phi"] for r in eq])
+
+
+def fit(p: np.ndarray, phi: np.ndarray, p_max: float, phi_max: float):
+    """Eq. 2 fitted to the points (p, phi) (n,) with P/E <= ``p_max`` and phi <= ``phi_max``:
+    (post.fits result, number of points used)."""
+    from post.fits import fit_single_particle
+
+    sel = (p <= p_max) & (phi <= phi_max)
+    if sel.sum() < 3:
+        raise ValueError(f"fit of Eq. 2: fewer than 3 equilibrated frames with P/E <= {p_max} and "
+                         f"phi <= {phi_max}")
+    return fit_single_particle(phi[sel], p[sel]), int(sel.sum())

@@ -1,0 +1,1 @@
+"""Compaction of rigid/soft disk mixtures (the paper's main study): see README.md."""

@@ -1,0 +1,1 @@
+"""Jamming of rigid-disk packings: see README.md."""
