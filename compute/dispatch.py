@@ -50,7 +50,7 @@ from pathlib import Path
 
 from compute.progress import Display, read_progress
 
-__all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "run_status"]
+__all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "run_status", "run_times"]
 
 LOG = "compute.log"
 POLL = 2.0  # seconds between two looks at the running runs' progress
@@ -108,6 +108,19 @@ def run_status(out: str | Path) -> str:
     if (out / "checkpoint" / "state.npz").is_file():
         return "partial"
     return "new"
+
+
+def run_times(log_file: str | Path) -> dict[str, float]:
+    """{run name: wall seconds of the dispatches that ran it, summed over resumptions} from a
+    dispatch log (``log_file`` of :func:`dispatch`; {} when there is none)."""
+    times: dict[str, float] = {}
+    log = Path(log_file)
+    if log.is_file():
+        for line in log.read_text().splitlines():
+            entry = json.loads(line)
+            if entry["status"] in ("complete", "incomplete", "killed", "failed"):
+                times[entry["name"]] = times.get(entry["name"], 0.0) + entry.get("wall_time", 0.0)
+    return times
 
 
 def _tail(path: Path, lines: int = 15) -> str:

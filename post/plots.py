@@ -15,6 +15,7 @@ import numpy as np
 from post import measures
 
 if TYPE_CHECKING:
+    from post.compaction import Compaction
     from post.fits import FitResult
     from post.frames import Frame
 
@@ -103,43 +104,45 @@ def _fit_curve(fit: FitResult, points: int = 200) -> tuple[np.ndarray, np.ndarra
 
 
 def plot_compaction(ax, pressure_over_E: np.ndarray, phi: np.ndarray, label: str = "",
-                    fits: Sequence[tuple[str, FitResult]] = (), **style) -> None:
-    """Fig. 2: phi against P/E (markers) with fitted laws (lines, e.g. Platzer and Eq. 5)."""
-    ax.plot(pressure_over_E, phi, "o", label=label, **style)
-    for name, fit in fits:
+                    fits: Sequence[tuple[str, FitResult, str]] = (), color=None) -> None:
+    """Fig. 2: phi against P/E (markers) with fitted laws P(phi) (name, fit, line style; an empty
+    name draws the line without a legend entry), in ``color``."""
+    ax.plot(pressure_over_E, phi, "o", color=color, label=label or None)
+    for name, fit, style in fits:
         fit_phi, fit_pressure = _fit_curve(fit)
-        ax.plot(fit_pressure, fit_phi, "--", label=name)
+        ok = fit_pressure > 0
+        ax.plot(fit_pressure[ok], fit_phi[ok], style, color=color, linewidth=1, label=name or None)
     ax.set_xlabel("P/E")
     ax.set_ylabel(r"$\phi$")
-    ax.legend()
 
 
 def plot_bulk_modulus(ax, phi: np.ndarray, K_over_E: np.ndarray, label: str = "",
-                      predictions: Sequence[tuple[str, np.ndarray, np.ndarray]] = (), **style) -> None:
-    """Fig. 3: K/E against phi (markers) with predictions (name, phi, K/E) as lines, e.g. Eq. 3 and
-    the modulus of the Platzer fit; log K axis."""
-    ax.plot(phi, K_over_E, "o", label=label, **style)
-    for name, x, y in predictions:
-        ax.plot(x, y, "--", label=name)
+                      predictions: Sequence[tuple[str, np.ndarray, np.ndarray, str]] = (), color=None) -> None:
+    """Fig. 3: K/E against phi (markers, the finite positive K only) with predictions (name, phi,
+    K/E, line style) as lines, e.g. Eq. 3 and the modulus of the Platzer fit; log K axis."""
+    finite = np.isfinite(K_over_E) & (K_over_E > 0)
+    ax.plot(phi[finite], K_over_E[finite], "o", color=color, label=label or None)
+    for name, x, y, style in predictions:
+        ax.plot(x, y, style, color=color, linewidth=1, label=name or None)
     ax.set_yscale("log")
     ax.set_xlabel(r"$\phi$")
     ax.set_ylabel("K/E")
-    ax.legend()
 
 
-def plot_coordination(ax, phi: np.ndarray, Z: np.ndarray, phi0: float, Z0: float, label: str = "",
-                      fit: FitResult | None = None, **style) -> None:
-    """Fig. 4: Z - Z0 against phi - phi0 in log-log axes (points with both > 0), with the power
-    law Z - Z0 = xi (phi - phi0)^alpha of a fit."""
-    above = (phi > phi0) & (Z > Z0)
-    ax.loglog(phi[above] - phi0, Z[above] - Z0, "o", label=label, **style)
-    if fit is not None:
-        fit_phi, fit_Z = _fit_curve(fit)
-        ax.loglog(fit_phi - phi0, fit_Z - Z0, "--",
-                  label=rf"$\xi$ = {fit.params['xi']:.3g}, $\alpha$ = {fit.params['alpha']:.3g}")
+def plot_coordination(ax, dphi: np.ndarray, dZ: np.ndarray, label: str = "", marker: str = "o", color=None,
+                      laws: Sequence[tuple[str, float, float, str, str]] = (),
+                      span: tuple[float, float] | None = None) -> None:
+    """Fig. 4: Z - Z0 against phi - phi0 (n,) in log-log axes (the points with both > 0), with
+    power laws Z - Z0 = xi (phi - phi0)^alpha (name, xi, alpha, line style, colour) over ``span``
+    (default: the points' range)."""
+    ok = (dphi > 0) & (dZ > 0)
+    ax.loglog(dphi[ok], dZ[ok], marker, color=color, label=label or None)
+    if laws:
+        x = np.geomspace(*(span or (dphi[ok].min(), dphi[ok].max())), 100)
+        for name, xi, alpha, style, line_colour in laws:
+            ax.loglog(x, xi * x**alpha, style, color=line_colour, label=name or None)
     ax.set_xlabel(r"$\phi - \phi_0$")
     ax.set_ylabel(r"$Z - Z_0$")
-    ax.legend()
 
 
 def plot_single_particle(ax, curves: Mapping[str, tuple[np.ndarray, np.ndarray]], fit: FitResult | None = None) -> None:
@@ -154,3 +157,125 @@ def plot_single_particle(ax, curves: Mapping[str, tuple[np.ndarray, np.ndarray]]
     ax.set_xlabel(r"$P_p/E$")
     ax.set_ylabel(r"$\phi_p$")
     ax.legend()
+
+
+# --- the paper's figures of a compaction study (post.compaction) -------------------------------
+
+
+def figure_views(frames: Sequence[Frame], title: str):
+    """Fig. 1: the frames side by side (force chains, cell pressure)."""
+    fig, axes = new_figure(1, len(frames), size=(4.5, 4.2))
+    for ax, frame in zip(axes[0], frames):
+        draw_force_chains(ax, frame)
+        ax.set_title(f"P/E = {frame.record.pressure_applied:.3g}")
+    fig.suptitle(title)
+    return fig
+
+
+def _by_mu(result: Compaction):
+    groups = result.groups
+    mus, kappas = sorted({mu for _, mu in groups}), sorted({k for k, _ in groups})
+    return groups, mus, kappas, {k: f"C{i}" for i, k in enumerate(kappas)}
+
+
+def figure_compaction(result: Compaction):
+    """Fig. 2: φ(P/E) per μ, a colour per κ, with Eq. 5 (solid) and Platzer (dotted)."""
+    groups, mus, kappas, colour = _by_mu(result)
+    fig, axes = new_figure(1, max(1, len(mus)), size=(5.5, 4.5))
+    for j, mu in enumerate(mus):
+        ax = axes[0, j]
+        for kappa in kappas:
+            g = groups.get((kappa, mu))
+            if g is not None:
+                laws = [("", f, style) for f, style in ((g.eq5, "-"), (g.platzer, ":")) if f is not None]
+                plot_compaction(ax, g.P, g.phi, rf"$\kappa$ = {kappa:g}", laws, colour[kappa])
+        ax.set_title(rf"Fig. 2, $\mu$ = {mu:g}")
+        ax.legend(fontsize=8)
+        ax.set_xscale("log")
+        ax.text(0.02, 0.98, "markers: simulation\nsolid: Eq. 5 (fitted $\\phi_{max}$)\ndotted: Platzer et al.",
+                transform=ax.transAxes, va="top", fontsize=7)
+    return fig
+
+
+def figure_bulk_modulus(result: Compaction):
+    """Fig. 3: K/E(φ) per μ, a colour per κ, with Eq. 3 (solid) and the Platzer modulus (dotted)."""
+    from post import models
+
+    groups, mus, kappas, colour = _by_mu(result)
+    fig, axes = new_figure(1, max(1, len(mus)), size=(5.5, 4.5))
+    for j, mu in enumerate(mus):
+        ax = axes[0, j]
+        for kappa in kappas:
+            g = groups.get((kappa, mu))
+            if g is None:
+                continue
+            finite = np.isfinite(g.K) & (g.K > 0)
+            lines = []
+            if finite.any():
+                order = np.argsort(g.phi[finite])
+                lines.append(("", g.phi[finite][order], g.eq3[finite][order], "-"))
+                if g.platzer is not None:
+                    x = np.linspace(g.phi.min(), g.phi.max(), 100)
+                    lines.append(("", x, models.log_compaction_modulus(x, g.platzer.params["P0"],
+                                                                       g.platzer.params["phi_max"]), ":"))
+            plot_bulk_modulus(ax, g.phi, g.K, rf"$\kappa$ = {kappa:g}", lines, colour[kappa])
+        ax.set_title(rf"Fig. 3, $\mu$ = {mu:g}")
+        ax.legend(fontsize=8)
+        ax.text(0.02, 0.98, "markers: K = $\\phi$ dP/d$\\phi$\nsolid: Eq. 3, Z$\\phi$K$_p$/2$\\pi$ "
+                "($\\phi_{max}(\\kappa)$ of Eq. 5)\ndotted: Platzer modulus", transform=ax.transAxes, va="top",
+                fontsize=7)
+    return fig
+
+
+def figure_coordination(result: Compaction, reference: tuple[float, float] | None = None):
+    """Fig. 4: Z − Z₀ against φ − φ₀ for every (κ, μ), with the law fitted over all runs and a
+    ``reference`` (ξ, α), e.g. the paper's."""
+    groups, mus, kappas, colour = _by_mu(result)
+    fig, axes = new_figure(size=(5.5, 4.5))
+    ax = axes[0, 0]
+    markers = {mu: m for mu, m in zip(mus, "os^v")}
+    for (kappa, mu) in groups:
+        sel = [p for p in result.points if p["kappa"] == kappa and p["mu"] == mu]
+        plot_coordination(ax, np.array([p["phi"] - p["phi0"] for p in sel]), np.array([p["Z"] - p["Z0"] for p in sel]),
+                          rf"$\kappa$ = {kappa:g}, $\mu$ = {mu:g}", markers.get(mu, "o"), colour[kappa])
+    glob = result.coordination_all
+    if glob is not None:
+        laws = [(rf"fit: $\xi$ = {glob.params['xi']:.3g}, $\alpha$ = {glob.params['alpha']:.3g}",
+                 glob.params["xi"], glob.params["alpha"], "--", "k")]
+        if reference is not None:
+            laws.append((rf"paper: $\xi$ = {reference[0]}, $\alpha$ = {reference[1]}", *reference, ":", "0.5"))
+        plot_coordination(ax, np.zeros(0), np.zeros(0), laws=laws,
+                          span=(max(glob.phi_range[0] - 1.0, 1e-4), glob.phi_range[1] - 1.0))
+    ax.set_ylabel(rf"{result.z_column} $- Z_0$")
+    ax.set_title("Fig. 4")
+    ax.legend(fontsize=7)
+    return fig
+
+
+def figure_single_particle_law(result: Compaction):
+    """Fig. 5: the single-particle law used (Eq. 2), and φ_max(κ) of Eq. 5 and Platzer per μ."""
+    from post import models
+
+    groups, mus, kappas, _ = _by_mu(result)
+    law = result.law
+    fig, axes = new_figure(1, 2, size=(5.0, 4.2))
+    phi_p = np.linspace(np.pi / 4, law.phi_p_max - 1e-3, 200)
+    ax = axes[0, 0]
+    ax.plot(models.single_particle_pressure(phi_p, law.b, law.phi_p_max), phi_p, "--", color="0.4",
+            label=rf"Eq. 2: b = {law.b:.3g}, $\phi_{{p,max}}$ = {law.phi_p_max:.3g}")
+    ax.set_xscale("log")
+    ax.set_xlabel(r"$P_p/E$")
+    ax.set_ylabel(r"$\phi_p$")
+    ax.set_title("Fig. 5 (law used)" + (" - PAPER'S b" if law.paper_default else ""))
+    ax.legend(fontsize=7)
+    ax = axes[0, 1]
+    for mu in mus:
+        for name, key, style in (("Eq. 5", "eq5", "o-"), ("Platzer", "platzer", "s:")):
+            ks = [k for k in kappas if groups.get((k, mu)) and getattr(groups[(k, mu)], key) is not None]
+            ax.plot(ks, [getattr(groups[(k, mu)], key).params["phi_max"] for k in ks], style,
+                    label=rf"{name}, $\mu$ = {mu:g}")
+    ax.set_xlabel(r"$\kappa$")
+    ax.set_ylabel(r"$\phi_{max}$")
+    ax.set_title(r"fitted $\phi_{max}(\kappa)$")
+    ax.legend(fontsize=7)
+    return fig

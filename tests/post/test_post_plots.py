@@ -26,13 +26,19 @@ def test_paper_figures_helpers(tmp_path):
     phi_p = np.linspace(0.79, 0.97, 10)
     single = fits.fit_single_particle(phi_p, models.single_particle_pressure(phi_p, 0.14, 0.99))
     figure, axes = plots.new_figure(2, 2)
-    plots.plot_compaction(axes[0, 0], P, phi, "kappa = 0.5", fits=[("Platzer", platzer), ("Eq. 5", eq5)])
+    plots.plot_compaction(axes[0, 0], P, phi, "kappa = 0.5", fits=[("Platzer", platzer, ":"), ("Eq. 5", eq5, "-")])
     K = models.log_compaction_modulus(phi, platzer.params["P0"], platzer.params["phi_max"])
     plots.plot_bulk_modulus(axes[0, 1], phi, K, "data",
-                            predictions=[("Eq. 3", phi, models.eq3_bulk_modulus(phi, Z, 0.14, 0.99))])
-    plots.plot_coordination(axes[1, 0], phi, Z, PHI0, Z0, "data", fit=fits.fit_coordination(phi, Z, PHI0, Z0))
+                            predictions=[("Eq. 3", phi, models.eq3_bulk_modulus(phi, Z, 0.14, 0.99), "-")])
+    law = fits.fit_coordination(phi, Z, PHI0, Z0)
+    plots.plot_coordination(axes[1, 0], phi - PHI0, Z - Z0, "data",
+                            laws=[("fit", law.params["xi"], law.params["alpha"], "--", "k")])
     plots.plot_single_particle(axes[1, 1], {"Ne = 92": (models.single_particle_pressure(phi_p, 0.14, 0.99), phi_p)},
                                fit=single)
+    lines = {line.get_label(): line for ax in axes.ravel() for line in ax.get_lines()}
+    assert {"kappa = 0.5", "Platzer", "Eq. 5", "data", "Eq. 3", "fit"} <= set(lines)
+    x, y = lines["fit"].get_data()  # the coordination law drawn is the fitted one
+    np.testing.assert_allclose(y, 5.1 * x**0.5, rtol=1e-6)
     assert plots.save_figure(figure, tmp_path / "figs" / "paper.png").stat().st_size > 0
 
 

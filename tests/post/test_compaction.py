@@ -1,0 +1,101 @@
+"""post.compaction on synthetic studies generated from the paper's laws with known parameters."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from compute.dispatch import run_times
+from post import compaction, models
+from post.compaction import Reference, SingleParticleLaw
+
+B, XI, ALPHA = 0.14, 5.1, 0.5
+PHI_MAX = {0.5: 0.93, 1.0: 0.97}  # Eq. 5's phi_max per kappa
+PHI0, Z0 = 0.811, 3.6
+LAW = SingleParticleLaw(B, 0.99, "synthetic")
+
+
+def _rows(kappa: float, seed: int) -> list[dict]:
+    """The measures rows (post.table columns used by the analysis) of a run following Eq. 5 and the
+    coordination law exactly, with phi0 shifted a little per seed."""
+    phi0 = PHI0 + 0.002 * (seed - 1)
+    phi = np.linspace(phi0, phi0 + 0.1, 9)
+    P = np.concatenate([[1e-6], models.eq5_pressure(phi[1:], PHI_MAX[kappa], B, XI, ALPHA, Z0, phi0)])
+    Z = models.coordination_law(phi, XI, ALPHA, phi0, Z0)
+    K = phi * np.gradient(P, phi)
+    return [{"stage": k, "equilibrated": True, "phi": f, "P": p, "P_walls": p, "pressure_applied": p, "Z": z, "K": kk}
+            for k, (f, p, z, kk) in enumerate(zip(phi, P, Z, K))]
+
+
+@pytest.fixture(scope="module")
+def study():
+    runs = [{"name": f"k{k}_s{s}", "kappa": k, "mu": 0.2, "seed": s, "out": f"runs/k{k}_s{s}/out"}
+            for k in PHI_MAX for s in (1, 2)]
+    return {"runs": runs, "n": 30, "element": "T3", "elements": 92, "pressures_over_E": [1e-3, 0.1]}
+
+
+@pytest.fixture(scope="module")
+def result(study):
+    tables = {r["name"]: _rows(r["kappa"], r["seed"]) for r in study["runs"]}
+    return compaction.analyse(study, tables, LAW, "Z", "all", (XI, ALPHA))
+
+
+def test_laws_recovered(result):
+    glob = result.coordination_all
+    assert glob.params["xi"] == pytest.approx(XI, rel=1e-6) and glob.params["alpha"] == pytest.approx(ALPHA, rel=1e-6)
+    for (kappa, mu), g in result.groups.items():
+        assert g.seeds == [1, 2] and g.phi0 == pytest.approx(PHI0 + 0.001)
+        assert g.phi0_std == pytest.approx(0.002 / np.sqrt(2))
+        # Eq. 5 pooled over two seeds of different phi0 uses the mean phi0: phi_max close, not exact;
+        # each seed alone recovers it exactly, so the seed scatter of phi_max is ~0
+        assert g.eq5.params["phi_max"] == pytest.approx(PHI_MAX[kappa], abs=5e-3)
+        assert g.phi_max_seed_std["eq5"] == pytest.approx(0.0, abs=1e-8)
+
+
+def test_table1_and_fit_rows(result):
+    rows = {(r["kappa"], r["mu"]): r for r in result.table1({0.2: {0.5: 0.811}}, {0.2: {0.5: 3.7}})}
+    assert rows[(0.5, 0.2)]["phi0_paper"] == 0.811 and rows[(1.0, 0.2)]["phi0_paper"] == ""
+    assert rows[(0.5, 0.2)]["n_seeds"] == 2 and rows[(0.5, 0.2)]["n_points"] == 18
+    laws = {(r["law"], r["kappa"], r["parameter"]) for r in result.fit_rows}
+    assert ("eq5", 0.5, "phi_max") in laws and ("coordination", "all", "xi") in laws
+    assert ("single_particle (Eq. 2)", "all", "b") in laws
+
+
+def test_inverse_and_errors_of_an_exact_law():
+    phi = np.linspace(0.82, 0.9, 7)
+    model = lambda x: models.platzer_pressure(x, 0.05, 0.95, PHI0)  # noqa: E731
+    P = model(phi)
+    np.testing.assert_allclose(compaction.phi_of_pressure(model, P, PHI0, 0.95), phi, atol=1e-12)
+    e = compaction.law_errors(model, phi, P, PHI0, 0.95)
+    assert e["phi_max_abs"] < 1e-12 and e["P_max_rel"] < 1e-12
+    e = compaction.law_errors(model, phi, 1.1 * P, PHI0, 0.95)  # 10 % more pressure than the law
+    assert e["P_max_rel"] == pytest.approx(1 - 1 / 1.1, abs=1e-12)  # |P_law / P - 1|
+
+
+def test_law_from_a_json_and_from_a_table(tmp_path):
+    (tmp_path / "fit.json").write_text(json.dumps({"b": 0.2, "phi_p_max": 0.98, "phi_range": [0.79, 0.97]}))
+    law = compaction.law_from_file(tmp_path / "fit.json", "T3", 92)
+    assert (law.b, law.phi_p_max, law.paper_default) == (0.2, 0.98, False)
+    table = tmp_path / "fits.csv"
+    table.write_text("element,elements,boundary_segments,b,phi_p_max,phi_min,phi_max\n"
+                     "T3,30,,0.3,0.97,0.79,0.96\nT3,92,,0.19,0.985,0.79,0.98\nT6,92,,0.15,0.99,0.79,0.98\n")
+    law = compaction.law_from_file(table, "T3", 100)
+    assert (law.b, law.phi_p_max) == (0.19, 0.985)
+
+
+def test_run_times_sum_the_dispatches_of_a_run(tmp_path):
+    log = tmp_path / "dispatch.jsonl"
+    log.write_text("\n".join(json.dumps(e) for e in [
+        {"name": "a", "status": "killed", "wall_time": 10.0}, {"name": "a", "status": "complete", "wall_time": 5.0},
+        {"name": "b", "status": "skipped", "wall_time": 0.0}, {"name": "b", "status": "failed", "wall_time": 2.0}]))
+    assert run_times(log) == {"a": 15.0, "b": 2.0}
+    assert run_times(tmp_path / "none.jsonl") == {}
+
+
+def test_summary_names_the_numbers_and_the_unfinished_runs(study, result):
+    text = compaction.summary_markdown(study, result, Reference({}, {}, XI, ALPHA, B), {"k0.5_s1": 12.0},
+                                       {"k0.5_s1": "complete", "k1.0_s2": "incomplete"}, {"k1.0_s2": "stage 3"})
+    assert "| 0.5 | 0.2 | 2 | 0.812 ± 0.001" in text
+    assert "| ξ | 5.10 | 5.1 |" in text and "- k1.0_s2: incomplete (stage 3)" in text
