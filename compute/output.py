@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute.contact.rows import Contacts
+from compute.contact.rows import ContactRows
 from compute.errors import OutputFolderError
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
@@ -31,11 +31,12 @@ def _atomic_write_mesh(path: Path, mesh) -> None:
     os.replace(tmp, path)
 
 
-def frame_path(out: Path, series: str, frame: int) -> Path:
-    return out / "frames" / f"{series}_{frame:05d}.vtu"
+def frame_path(out: str | Path, series: str, frame: int) -> Path:
+    """``OUT/frames/{series}_NNNNN.vtu``, ``series`` one of SERIES (bodies, contacts, walls)."""
+    return Path(out) / "frames" / f"{series}_{frame:05d}.vtu"
 
 
-def write_contacts(path: Path, contacts: Contacts, centres_i: np.ndarray, centres_j: np.ndarray,
+def write_contacts(path: Path, contacts: ContactRows, centres_i: np.ndarray, centres_j: np.ndarray,
                    time_step: float) -> None:
     """Active contacts (r_n > 0) as lines from centre i to centre j (or the wall contact point).
 
@@ -84,7 +85,7 @@ def write_pvd(out: Path, rows: list[dict]) -> None:
         for r in rows:
             f = int(r["frame"])
             lines.append(f'    <DataSet timestep="{float(r["time"])!r}" group="" part="0" '
-                         f'file="frames/{series}_{f:05d}.vtu"/>')
+                         f'file="{frame_path("", series, f).as_posix()}"/>')
         lines += ["  </Collection>", "</VTKFile>", ""]
         tmp = out / f"{series}.pvd.tmp"
         tmp.write_text("\n".join(lines))

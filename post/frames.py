@@ -19,11 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from compute.bodies_io import CELL_ELEMENT
+from compute.output import FRAME_COLUMNS, frame_path  # the output layout is written by compute, once
 from post.errors import OutputError
 
-FRAME_COLUMNS = ("frame", "time", "step", "stage", "pressure_applied", "equilibrated",
-                 "xmin", "xmax", "ymin", "ymax")
-CELL_ELEMENT = {"triangle": "T3", "triangle6": "T6"}
 WALL_IDS = (-1, -2, -3, -4)  # left (x = xmin), right (x = xmax), bottom (y = ymin), top (y = ymax)
 _BOOLEANS = {"1": True, "true": True, "0": False, "false": False}
 
@@ -77,7 +76,7 @@ class Bodies:
 
 
 @dataclass(frozen=True)
-class Contacts:
+class FrameContacts:
     """Contact candidates of a frame, one row per candidate (M rows).
 
     ``body_i``, ``body_j`` (M,) int, ``body_j < 0`` for a wall; ``force`` (M, 2) the force exerted
@@ -111,13 +110,8 @@ class Frame:
 
     record: FrameRecord
     bodies: Bodies
-    contacts: Contacts
+    contacts: FrameContacts
     walls: Walls
-
-
-def frame_path(out_dir: str | Path, kind: str, frame: int) -> Path:
-    """Path of ``frames/{kind}_NNNNN.vtu`` for ``kind`` in bodies, contacts, walls."""
-    return Path(out_dir) / "frames" / f"{kind}_{frame:05d}.vtu"
 
 
 def read_frames_table(out_dir: str | Path) -> list[FrameRecord]:
@@ -250,12 +244,12 @@ def read_bodies(path: str | Path) -> Bodies:
                   rigid_centres=rigid_centres, meshes=meshes)
 
 
-def read_contacts(path: str | Path, n_bodies: int) -> Contacts:
+def read_contacts(path: str | Path, n_bodies: int) -> FrameContacts:
     """Read and validate a ``contacts_NNNNN.vtu`` frame of a packing of ``n_bodies`` bodies."""
     path = Path(path)
     mesh = _read_vtu(path)
     if mesh is None:
-        return Contacts(body_i=np.empty(0, np.int64), body_j=np.empty(0, np.int64), force=np.empty((0, 2)),
+        return FrameContacts(body_i=np.empty(0, np.int64), body_j=np.empty(0, np.int64), force=np.empty((0, 2)),
                         fn=np.empty(0), branch=np.empty((0, 2)), segments=np.empty((0, 2, 2)))
     if any(c.type != "line" for c in mesh.cells):
         raise OutputError(path, "cells", "line cells only", sorted({c.type for c in mesh.cells}))
@@ -268,7 +262,7 @@ def read_contacts(path: str | Path, n_bodies: int) -> Contacts:
                                                     f"or wall ids -1 .. -4")
     points = np.asarray(mesh.points, dtype=float)[:, :2]
     lines = np.concatenate([c.data for c in mesh.cells])
-    return Contacts(body_i=body_i, body_j=body_j, force=_cell_field(mesh, path, "force", 2),
+    return FrameContacts(body_i=body_i, body_j=body_j, force=_cell_field(mesh, path, "force", 2),
                     fn=_cell_field(mesh, path, "fn"), branch=_cell_field(mesh, path, "branch", 2),
                     segments=points[lines])
 

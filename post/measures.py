@@ -36,40 +36,12 @@ from __future__ import annotations
 
 import numpy as np
 
-# Quadrature on the reference triangle {xi, eta >= 0, xi + eta <= 1}: (points (q, 2), weights (q,)).
-# One point suffices for T3 (det J constant); three points are exact for the quadratic det J of T6.
-_QUADRATURE = {
-    3: (np.array([[1 / 3, 1 / 3]]), np.array([0.5])),
-    6: (np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]]), np.full(3, 1 / 6)),
-}
-
-
-def _shape_gradients(nodes: int, xi: np.ndarray) -> np.ndarray:
-    """Reference gradients dN_k/d(xi, eta) at the points xi (q, 2): shape (q, 2, nodes).
-
-    VTK node order: corners 0, 1, 2, then the mid-side nodes of edges 01, 12, 20 (T6).
-    """
-    x, y = xi[:, 0], xi[:, 1]
-    if nodes == 3:
-        return np.broadcast_to(np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]]), (len(xi), 2, 3))
-    l1, l2, l3 = 1 - x - y, x, y  # barycentric coordinates; d(l1, l2, l3)/dxi = (-1, 1, 0), /deta = (-1, 0, 1)
-    zero = np.zeros_like(x)
-    d_xi = [1 - 4 * l1, 4 * l2 - 1, zero, 4 * (l1 - l2), 4 * l3, -4 * l3]
-    d_eta = [1 - 4 * l1, zero, 4 * l3 - 1, -4 * l2, 4 * l2, 4 * (l1 - l3)]
-    return np.stack([np.stack(d_xi, axis=-1), np.stack(d_eta, axis=-1)], axis=1)
-
+from compute.fem.topology import signed_areas
 
 def triangle_areas(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Current areas of T3 or T6 triangles, exactly: area = integral of |det J| over the
-    reference triangle (for T6 this is the area bounded by the three parabolic edges).
-
-    points (n_points, 2); cells (n_cells, 3 | 6) in VTK node order. Returns (n_cells,).
-    """
-    xi, weights = _QUADRATURE[cells.shape[1]]
-    gradients = _shape_gradients(cells.shape[1], xi)            # (q, 2, nodes)
-    jacobian = np.einsum("qak,ekd->eqad", gradients, points[cells])  # (cells, q, 2, 2): dx_d/dxi_a
-    det = jacobian[..., 0, 0] * jacobian[..., 1, 1] - jacobian[..., 0, 1] * jacobian[..., 1, 0]
-    return np.abs(det @ weights)
+    """Current areas (n_cells,) of T3 or T6 triangles (n_cells, 3 | 6) of points (n_points, 2),
+    exactly: for T6 the area bounded by the three parabolic edges (compute.fem.topology)."""
+    return np.abs(signed_areas(points, cells))
 
 
 def particle_areas(radius: np.ndarray, rigid: np.ndarray, points: np.ndarray,

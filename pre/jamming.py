@@ -23,6 +23,7 @@ def jam(workdir: str | Path, centres: np.ndarray, radii: np.ndarray, box: tuple[
     Runs in ``workdir``/scene and ``workdir``/out; returns the jammed centres (n, 2) and box.
     ``overrides`` maps "table.key" to a value of the scene parameters (e.g. "solver.time_step").
     """
+    from compute.output import frame_path
     from compute.run import run
 
     from meshio import vtu
@@ -36,8 +37,8 @@ def jam(workdir: str | Path, centres: np.ndarray, radii: np.ndarray, box: tuple[
     write_scene(workdir / "scene", params, centres, radii, ["rigid"] * len(radii))
     state = run(workdir / "scene", workdir / "out", log=log)
     last = state.frame - 1
-    bodies = vtu.read(workdir / "out" / "frames" / f"bodies_{last:05d}.vtu")
-    walls = vtu.read(workdir / "out" / "frames" / f"walls_{last:05d}.vtu")
+    bodies = vtu.read(frame_path(workdir / "out", "bodies", last))
+    walls = vtu.read(frame_path(workdir / "out", "walls", last))
     order = np.argsort(np.asarray(bodies.cell_data["body"][0]))
     vertex = bodies.cells[0].data[:, 0]
     jammed = np.asarray(bodies.points)[vertex[order], :2]

@@ -38,6 +38,10 @@ from typing import Literal
 
 import numpy as np
 
+from compute.bodies_io import CELL_ELEMENT, ELEMENT_CELL
+from compute.fem.elements import element_type
+from compute.fem.topology import boundary_loop, signed_areas
+
 __all__ = [
     "DiskMesh",
     "ELEMENTS",
@@ -47,9 +51,8 @@ __all__ = [
 ]
 
 ELEMENTS = ("T3", "T6")
-_CELL_TYPE = {"T3": "triangle", "T6": "triangle6"}
+
 _NODES_PER_CELL = {"T3": 3, "T6": 6}
-_ELEMENT_OF_CELL_TYPE = {v: k for k, v in _CELL_TYPE.items()}
 
 # Mesh size h = _SIZE_PER_SEGMENT / n_segments for a unit radius (0.3 for 20 segments, the
 # measured recipe for exactly 92 triangles). Element count measured with gmsh 4.15:
@@ -145,7 +148,7 @@ class DiskMesh:
     @property
     def cell_type(self) -> str:
         """meshio cell type: "triangle" (T3) or "triangle6" (T6)."""
-        return _CELL_TYPE[self.element]
+        return ELEMENT_CELL[self.element]
 
     # ---- geometry ---------------------------------------------------------------------------
 
@@ -154,10 +157,7 @@ class DiskMesh:
         """Area of each element, shape (n_elements,): straight-sided for T3; for T6 the area of
         the quadratic (isoparametric) element, curved edges included (exact: det J is
         quadratic, integrated by a degree-2 rule)."""
-        if self.element == "T3":
-            areas = _signed_areas(self.points, self.cells)
-        else:
-            areas = _quadratic_triangle_areas(self.points, self.cells)
+        areas = signed_areas(self.points, self.cells)
         areas.setflags(write=False)
         return areas
 
@@ -170,7 +170,7 @@ class DiskMesh:
     def centroid(self) -> np.ndarray:
         """Area centroid of the vertex polygon mesh, shape (2,)."""
         vert = self.points[self.cells[:, :3]]
-        a = _signed_areas(self.points, self.cells)
+        a = signed_areas(self.points, self.cells[:, :3])
         return (a[:, None] * vert.mean(axis=1)).sum(axis=0) / a.sum()
 
     @functools.cached_property
@@ -179,7 +179,7 @@ class DiskMesh:
         left), shape (n_boundary,), the first node not repeated at the end. For T6 the
         midside nodes are included between their edge's vertices. Starts at the boundary
         vertex of smallest index."""
-        loop = _boundary_loop(self.cells, self.element)
+        loop = boundary_loop(self.cells, element_type(self.element))
         loop.setflags(write=False)
         return loop
 
@@ -229,14 +229,14 @@ class DiskMesh:
         if ext not in (".msh", ".vtu"):
             raise ValueError(f"DiskMesh.read: {path}: extension must be .msh or .vtu, got {ext!r}")
         m = meshio.read(path, file_format="gmsh" if ext == ".msh" else "vtu")
-        blocks = [b for b in m.cells if b.type in _ELEMENT_OF_CELL_TYPE]
+        blocks = [b for b in m.cells if b.type in CELL_ELEMENT]
         kinds = {b.type for b in blocks}
         if len(kinds) != 1:
             raise ValueError(
                 f"DiskMesh.read: {path}: cells: expected one kind of 'triangle' or 'triangle6' "
                 f"cells, found {sorted(kinds) or 'none'}"
             )
-        element = _ELEMENT_OF_CELL_TYPE[kinds.pop()]
+        element = CELL_ELEMENT[kinds.pop()]
         cells = np.concatenate([b.data for b in blocks]).astype(np.int64)
         pts = np.asarray(m.points, dtype=np.float64)
         if pts.shape[1] == 3 and np.any(np.abs(pts[:, 2]) > 1e-12 * max(1.0, np.abs(pts).max())):
@@ -472,31 +472,6 @@ def _gmsh_disk(n_segments: int, size: float, order: int, graded: bool = False) -
 # --------------------------------------------------------------------------------------------
 
 
-def _signed_areas(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Signed area of the vertex triangles, shape (ne,)."""
-    p0, p1, p2 = (points[cells[:, i]] for i in range(3))
-    d1, d2 = p1 - p0, p2 - p0
-    return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-
-
-def _quadratic_triangle_areas(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Area of quadratic triangles (meshio triangle6 order): integral of det J over the
-    reference triangle with the 3-point rule exact for quadratics. Shape (ne,)."""
-    x = points[cells]  # (ne, 6, 2)
-    rule = ((1 / 6, 1 / 6), (2 / 3, 1 / 6), (1 / 6, 2 / 3))
-    total = np.zeros(len(cells))
-    for r, s in rule:
-        t = 1.0 - r - s
-        # derivatives of the 6 shape functions wrt r and s (N0 = t(2t-1), N1 = r(2r-1),
-        # N2 = s(2s-1), N3 = 4rt, N4 = 4rs, N5 = 4st)
-        dr = np.array([1 - 4 * t, 4 * r - 1, 0.0, 4 * (t - r), 4 * s, -4 * s])
-        ds = np.array([1 - 4 * t, 0.0, 4 * s - 1, -4 * r, 4 * r, 4 * (t - s)])
-        jr = np.einsum("k,ekd->ed", dr, x)
-        js = np.einsum("k,ekd->ed", ds, x)
-        total += (jr[:, 0] * js[:, 1] - jr[:, 1] * js[:, 0]) / 6.0
-    return total
-
-
 def _compact_and_orient(points: np.ndarray, cells: np.ndarray, element: str):
     """Drop nodes no cell uses (keeping the order of the others), renumber, and flip clockwise
     triangles (vertex order 0, 2, 1; T6 midside nodes 5, 4, 3)."""
@@ -505,38 +480,8 @@ def _compact_and_orient(points: np.ndarray, cells: np.ndarray, element: str):
     remap[used] = np.arange(len(used))
     points = np.ascontiguousarray(points[used], dtype=np.float64)
     cells = remap[cells]
-    cw = _signed_areas(points, cells) < 0.0
+    cw = signed_areas(points, cells[:, :3]) < 0.0  # the vertex triangles
     if np.any(cw):
         perm = [0, 2, 1] if element == "T3" else [0, 2, 1, 5, 4, 3]
         cells[cw] = cells[cw][:, perm]
     return points, np.ascontiguousarray(cells, dtype=np.int64)
-
-
-def _boundary_loop(cells: np.ndarray, element: str) -> np.ndarray:
-    """CCW loop of boundary nodes of a mesh of CCW triangles whose boundary is one closed
-    curve (a disk). For T6 midside nodes are inserted between vertices."""
-    edges = np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]])
-    if element == "T6":
-        mids = np.concatenate([cells[:, 3], cells[:, 4], cells[:, 5]])
-    else:
-        mids = np.full(len(edges), -1, dtype=np.int64)
-    key = np.sort(edges, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    on_boundary = counts[inverse.ravel()] == 1
-    b_edges, b_mids = edges[on_boundary], mids[on_boundary]
-    nxt = {int(a): (int(b), int(m)) for (a, b), m in zip(b_edges, b_mids)}
-    if len(nxt) != len(b_edges):
-        raise ValueError("boundary_nodes: the boundary is not a simple closed curve")
-    start = int(b_edges[:, 0].min())
-    loop, node = [], start
-    for _ in range(len(b_edges)):
-        b, m = nxt[node]
-        loop.append(node)
-        if m >= 0:
-            loop.append(m)
-        node = b
-        if node == start:
-            break
-    if node != start or len(loop) != len(b_edges) * (2 if element == "T6" else 1):
-        raise ValueError("boundary_nodes: the boundary is not one closed curve (not a disk?)")
-    return np.asarray(loop, dtype=np.int64)

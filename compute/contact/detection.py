@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from compute.contact.families import Broad
-from compute.contact.rows import Contacts
+from compute.contact.rows import ContactRows
 from compute.state import State
 
 
@@ -57,8 +57,8 @@ def carry(old_pairs, old_impulses, pairs: np.ndarray) -> np.ndarray:
     return out
 
 
-def narrow_phase(model, state: State, branches: bool = True) -> Contacts:
-    """Contacts of all families at ``state.q`` with the impulses of the memory.
+def narrow_phase(model, state: State, branches: bool = True) -> ContactRows:
+    """ContactRows of all families at ``state.q`` with the impulses of the memory.
 
     ``branches``: fill the branch vectors (from the body centres: soft centroids), which frames
     need and a step does not.
@@ -68,7 +68,7 @@ def narrow_phase(model, state: State, branches: bool = True) -> Contacts:
     q = state.q
     centres = model.centres(q) if branches and model.soft else None
     parts = [fam.rows(model, q, state.pairs[fam.name], centres) for fam in model.families]
-    out = Contacts.concatenate(parts) if parts else Contacts.empty(0)
+    out = ContactRows.concatenate(parts) if parts else ContactRows.empty(0)
     idle = (out.hn == 0.0) & ((out.mu == 0.0)[:, None] | (out.ht == 0.0))
     out.dof[idle] = -1
     if len(out):

@@ -5,7 +5,7 @@ A family is ``Family(name, kinds, candidates, rows)``:
 
 - ``candidates(model, q, broad, skin)`` -> (m, k) int64 candidate list, k >= 2, whose first two
   columns identify a contact (impulses are carried over a re-detection on them);
-- ``rows(model, q, pairs, centres)`` -> :class:`~compute.contact.rows.Contacts` at q
+- ``rows(model, q, pairs, centres)`` -> :class:`~compute.contact.rows.ContactRows` at q
   (``centres`` (n_bodies, 2): body centres for the branch vectors, or None when the caller does
   not need branches: a step does not); a family may update ``pairs`` in place (a
   closest-segment hint).
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from compute.contact import broadphase
-from compute.contact.rows import WALL_AXES, WALL_NORMALS, Contacts, disk_disk_rows, disk_wall_rows
+from compute.contact.rows import WALL_AXES, WALL_NORMALS, ContactRows, disk_disk_rows, disk_wall_rows
 from compute.contact.soft_rows import (
     near_disk_nodes,
     near_segment_nodes,
@@ -79,7 +79,7 @@ def _disk_disk_candidates(model, q, broad, skin):
 
 def _disk_disk_rows(model, q, pairs, centres):
     r = model.rigid
-    c = Contacts.empty(len(pairs))
+    c = ContactRows.empty(len(pairs))
     disk_disk_rows(pairs, np.ascontiguousarray(r.centres(q)), r.radii, r.dof_of(), c.dof, c.hn, c.ht, c.gap,
                    c.normal, c.point, c.branch)
     c.pairs[:] = pairs
@@ -96,7 +96,7 @@ def _disk_wall_candidates(model, q, broad, skin):
 
 def _disk_wall_rows(model, q, pairs, centres):
     r, walls = model.rigid, model.walls
-    c = Contacts.empty(len(pairs))
+    c = ContactRows.empty(len(pairs))
     disk_wall_rows(pairs, np.ascontiguousarray(r.centres(q)), r.radii, r.dof_of(),
                    np.ascontiguousarray(walls.bounds(q)), walls.dof0, WALL_NORMALS, WALL_AXES,
                    c.dof, c.hn, c.ht, c.gap, c.normal, c.point, c.branch)
@@ -117,7 +117,7 @@ def _node_wall_candidates(model, q, broad, skin):
 
 
 def _node_wall_rows(model, q, pairs, centres):
-    c = Contacts.empty(len(pairs))
+    c = ContactRows.empty(len(pairs))
     node_wall_rows(pairs, model.soft_nodes(q), model.node_dof0, np.ascontiguousarray(model.walls.bounds(q)),
                    model.walls.dof0, WALL_NORMALS, WALL_AXES, c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
     c.pairs[:] = pairs
@@ -136,7 +136,7 @@ def _node_disk_candidates(model, q, broad, skin):
 
 def _node_disk_rows(model, q, pairs, centres):
     r = model.rigid
-    c = Contacts.empty(len(pairs))
+    c = ContactRows.empty(len(pairs))
     node_disk_rows(pairs, model.soft_nodes(q), model.node_dof0, np.ascontiguousarray(r.centres(q)), r.radii,
                    r.dof_of(), c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
     return _node_body_pairs(model, c, pairs, r.ids[pairs[:, 1]], r.material[pairs[:, 1]], centres)
@@ -149,7 +149,7 @@ def _node_segment_candidates(model, q, broad, skin):
 
 
 def _node_segment_rows(model, q, pairs, centres):
-    c = Contacts.empty(len(pairs))
+    c = ContactRows.empty(len(pairs))
     node_segment_rows(pairs, model.soft_nodes(q), model.node_dof0, model.loop_nodes, model.loop_start,
                       c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
     return _node_body_pairs(model, c, pairs[:, :2], model.soft_ids[pairs[:, 1]], model.soft_material[pairs[:, 1]],

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from compute.contact.compliance import Compliance, delassus_blocks
-from compute.contact.rows import Contacts, generalised_impulse
+from compute.contact.rows import ContactRows, generalised_impulse
 
 
 @dataclass
@@ -38,7 +38,7 @@ class ContactProblem:
     impulse: np.ndarray
 
     @classmethod
-    def build(cls, contacts: Contacts, compliance: Compliance, v_free: np.ndarray, v_minus: np.ndarray,
+    def build(cls, contacts: ContactRows, compliance: Compliance, v_free: np.ndarray, v_minus: np.ndarray,
               h: float, theta: float) -> "ContactProblem":
         """The problem of ``contacts`` (rows at q_n, impulses = warm start) for velocities v⁻ (n_dofs,)."""
         un_minus = np.sum(contacts.hn * np.where(contacts.dof >= 0, v_minus[contacts.dof], 0.0), axis=1)

@@ -23,7 +23,7 @@ WALL_AXES = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]])  # direct
 
 
 @dataclass
-class Contacts:
+class ContactRows:
     """Arrays over the nc candidate contacts of one step (shapes in brackets).
 
     ``pairs`` (nc, 2) the candidate pairs in the numbering of the detector that made them,
@@ -46,7 +46,7 @@ class Contacts:
     impulse: np.ndarray
 
     @classmethod
-    def empty(cls, n: int) -> "Contacts":
+    def empty(cls, n: int) -> "ContactRows":
         return cls(
             pairs=np.zeros((n, 2), np.int64), body_i=np.zeros(n, np.int64), body_j=np.zeros(n, np.int64),
             dof=np.full((n, MAX_DOFS), -1, np.int64), hn=np.zeros((n, MAX_DOFS)), ht=np.zeros((n, MAX_DOFS)),
@@ -58,7 +58,7 @@ class Contacts:
         return len(self.gap)
 
     @classmethod
-    def concatenate(cls, parts: list["Contacts"]) -> "Contacts":
+    def concatenate(cls, parts: list["ContactRows"]) -> "ContactRows":
         names = cls.__dataclass_fields__
         return cls(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in names})
 

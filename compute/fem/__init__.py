@@ -2,6 +2,7 @@
 
 - ``material``: compressible neo-Hookean law (isochoric / volumetric split), numba kernels.
 - ``elements``: T3 / T6 reference triangles, shape functions, quadrature rules.
+- ``topology``: boundary loop of a disk mesh, exact element areas (shared with pre and post).
 - ``body``: ``FEBody``, mass, internal force, consistent tangent, stresses, theta-scheme system.
 """
 
@@ -11,9 +12,9 @@ from .body import (
     FEBody,
     InvertedElementError,
     ThetaSystem,
-    boundary_loop,
 )
 from .elements import T3, T6, ElementType, QuadratureRule, element_type
+from .topology import boundary_loop, signed_areas
 from .material import (
     NeoHookean,
     cauchy_stress,
@@ -31,6 +32,7 @@ __all__ = [
     "ThetaSystem",
     "InvertedElementError",
     "boundary_loop",
+    "signed_areas",
     "VOLUMETRIC_FORMULATIONS",
     "ElementType",
     "QuadratureRule",

@@ -42,10 +42,10 @@ from .body import (
     _sparsity,
     _strain_energy,
     _volumetric_geometric,
-    boundary_loop,
     check_connectivity,
 )
 from .elements import ElementType, QuadratureRule, element_type
+from .topology import boundary_loop
 from .material import NeoHookean
 
 __all__ = ["BodyBatch"]

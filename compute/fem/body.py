@@ -47,6 +47,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .elements import ElementType, QuadratureRule, element_type
+from .topology import boundary_loop
 from .material import (
     NeoHookean,
     isochoric_cauchy,
@@ -62,7 +63,6 @@ __all__ = [
     "ElementStresses",
     "ThetaSystem",
     "InvertedElementError",
-    "boundary_loop",
     "VOLUMETRIC_FORMULATIONS",
 ]
 
@@ -422,37 +422,6 @@ def _sparsity(cells: np.ndarray, n_dof: int) -> tuple[np.ndarray, np.ndarray, np
     return *pattern, kmap.reshape(cells.shape[0], n_ed, n_ed)
 
 
-def boundary_loop(cells: np.ndarray, element: ElementType) -> np.ndarray:
-    """All boundary nodes (corners and, for T6, midside nodes) as one closed CCW loop, (n_b,).
-
-    cells (n_elem, n_en) must be counter-clockwise. The loop starts at the smallest boundary
-    corner index and does not repeat it at the end; segment k joins loop[k] and loop[k+1 mod n_b]
-    (for T6 each element edge is split into two straight sub-segments at its midside node).
-    Raises ValueError if the boundary is not a single closed curve (holes, several parts,
-    non-manifold edges).
-    """
-    edges = cells[:, element.edges].reshape(-1, element.edges.shape[1])
-    key = np.sort(edges[:, [0, -1]], axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    if counts.max() > 2:
-        raise ValueError("mesh has edges shared by more than two elements")
-    boundary = edges[counts[inverse.ravel()] == 1]
-    successor = {int(edge[0]): edge for edge in boundary}
-    if len(successor) != len(boundary):
-        raise ValueError("mesh boundary touches itself (a corner starts two boundary edges)")
-    start = node = min(successor)
-    loop: list[int] = []
-    for _ in range(len(boundary)):
-        edge = successor[node]
-        loop.extend(int(n) for n in edge[:-1])
-        node = int(edge[-1])
-        if node == start:
-            break
-    if node != start or len(loop) != boundary.size - len(boundary):
-        raise ValueError("mesh boundary is not a single closed loop (holes or several parts)")
-    return np.array(loop, dtype=np.int64)
-
-
 def check_connectivity(cells: np.ndarray, n_nodes: int, element: ElementType, volumetric: str) -> None:
     """ValueError unless cells (n_elem, n_en) are ``element``'s, reference nodes 0..n_nodes-1 and
     use every one of them, and ``volumetric`` is a known formulation."""
@@ -480,9 +449,7 @@ class FEBody:
     Attributes: ``X`` (n, 2), ``cells``, ``n_nodes``, ``n_dof`` = 2n; ``mass`` CSR (2n, 2n)
     consistent mass matrix (explicit zeros in the x-y couplings: the pattern, whose read-only
     index arrays all the body's matrices share, is that of K_t); ``reference_areas``
-    (n_elem,); ``boundary`` (n_b,) CCW boundary loop; ``area_hessian_data`` (nnz,) the
-    constant Hessian of the body's current area, d2 a / dx2, in the same CSR pattern (nonzero
-    on boundary nodes only).
+    (n_elem,); ``boundary`` (n_b,) CCW boundary loop.
     """
 
     def __init__(
@@ -507,17 +474,6 @@ class FEBody:
         self._indptr, self._indices, self._kmap = _sparsity(cells, self.n_dof)
         self.reference_areas = self._wdV.sum(axis=1)
         self.boundary = boundary_loop(cells, self.element)
-
-        # Hessian of the body's area (a constant matrix, nonzero on boundary nodes only: the
-        # element contributions cancel at interior nodes), in the CSR pattern
-        n_en = self.element.n_nodes
-        he = np.zeros((cells.shape[0], n_en, 2, n_en, 2))
-        h_ab = _area_hessians(self.element, True)[0]
-        he[:, :, 0, :, 1] = h_ab
-        he[:, :, 1, :, 0] = -h_ab
-        area_hessian = np.zeros(self._indices.size)
-        np.add.at(area_hessian, self._kmap, he.reshape(cells.shape[0], 2 * n_en, 2 * n_en))
-        self.area_hessian_data = area_hessian
 
         m_e = material.density * np.einsum("eq,qa,qb->eab", self._wdV_m, self._N_m, self._N_m)
         mass = np.zeros(self._indices.size)
@@ -555,11 +511,6 @@ class FEBody:
         """f_int(x) (2n,) and the consistent tangent K_t = d f_int / dx, CSR (2n, 2n)."""
         f, kdata = self._assemble(x, True)
         return f, self._csr(kdata)
-
-    def internal_force_and_tangent_data(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """f_int(x) (2n,) and the values (nnz,) of K_t(x) in the body's CSR pattern (no matrix
-        object built: compare or combine tangents with vector operations, see ``csr``)."""
-        return self._assemble(x, True)
 
     def strain_energy(self, x: np.ndarray) -> float:
         """Total strain energy E(x) per unit thickness."""
@@ -607,17 +558,6 @@ class FEBody:
         _volumetric_geometric(x, self.cells, self._dndX, self._wdV, self._area_hessian, self.material.kappa,
                               self._mean_dilatation, self._kmap, kdata)
         return kdata
-
-    def mean_pressure(self, x: np.ndarray) -> float:
-        """Area-weighted mean of the volumetric pressure -U'(J) (J-bar per element under mean
-        dilatation), compression positive, at positions x (n, 2)."""
-        J = self.jacobians(x)
-        w = self._wdV
-        if self._mean_dilatation:
-            J = (w * J).sum(axis=1, keepdims=True) / w.sum(axis=1, keepdims=True)
-            w = w.sum(axis=1, keepdims=True)
-        dU = 0.5 * self.material.kappa * (J - 1.0 / J)
-        return float(-(w * dU).sum() / w.sum())
 
     def jacobians(self, x: np.ndarray) -> np.ndarray:
         """J = det F (n_elem, n_q) at the stiffness quadrature points for positions x (n, 2)."""

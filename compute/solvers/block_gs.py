@@ -68,7 +68,7 @@ class BlockGS:
 
 
 def blocks_of(dof: np.ndarray, block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Contacts grouped by block: ``order`` (nc,) contact indices, block after block, and
+    """ContactRows grouped by block: ``order`` (nc,) contact indices, block after block, and
     ``bstart`` (n_blocks + 1,) offsets into it. A contact's block is the dense compliance block
     of its first dof in one (``block`` (n_dofs,), -1: none); others are blocks of one."""
     nc = dof.shape[0]

@@ -23,7 +23,7 @@ import numpy as np
 
 from compute.bodies import Load
 from compute.contact import detection
-from compute.contact.rows import Contacts
+from compute.contact.rows import ContactRows
 from compute.errors import SimulationError, StepFailure
 from compute import solvers
 from compute.stepping import control
@@ -37,7 +37,7 @@ class StepReport:
     residual: float
     n_contacts: int  # contacts carrying a positive normal impulse
     max_penetration: float  # max(-gap) at the start of the step, >= 0
-    contacts: Contacts
+    contacts: ContactRows
     newton_iterations: int = 1
     cuts: int = 0
     h: float = 0.0

@@ -66,6 +66,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
 
     from pre.jamming import jammed_rigid_scene
+    from post.frames import read_frames_table
     from pre.mixture import compaction_parameters, mixture_scene
 
     w = Path(a.workdir)
@@ -91,8 +92,7 @@ def main(argv=None) -> int:
             # jammed at P = 1 in units of rho <d>^2/t^2 (rigid disks: P only sets the time scale)
             rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu, seed, [1.0], overrides={"solver.time_step": 0.1},
                                              log=lambda msg: None)
-            frames = (rigid_dir / "jamming" / "out" / "frames.csv").read_text().splitlines()
-            equilibrated = frames[-1].split(",")[5] == "1"
+            equilibrated = read_frames_table(rigid_dir / "jamming" / "out")[-1].equilibrated
             jams.append({"mu": mu, "seed": seed, "scene": str(rigid_scene.relative_to(w)), "equilibrated": equilibrated,
                          "seconds": round(time.perf_counter() - t0, 1)})
             print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"

@@ -146,8 +146,8 @@ def test_negative_pivots_count_the_negative_eigenvalues_of_pressed_bodies(kind):
     body = _body(kind)
     sym = SymbolicLDL(body.mass.indptr, body.mass.indices)
     steps, squeezes = [0.01, 1.0, 3.0, 10.0, 100.0], [0.8, 0.6]
-    data = np.array([body.mass.data + h**2 * body.internal_force_and_tangent_data(
-        body.X * [1.0, s])[1] for s in squeezes for h in steps])
+    data = np.array([body.mass.data + h**2 * body.internal_force_and_tangent(body.X * [1.0, s])[1].data
+                     for s in squeezes for h in steps])
     B = data.shape[0]
     lx, d = np.zeros((B, sym.nnz_l)), np.zeros((B, sym.n))
     neg = sym.factorize(data, np.ones(B, bool), lx, d)
