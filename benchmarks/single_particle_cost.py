@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -47,23 +46,10 @@ def reference() -> tuple[np.ndarray, np.ndarray]:
     return data[:, 0], data[:, 1]
 
 
-def errors(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.ndarray) -> tuple[float, float]:
-    """(err_phi, err_P) of a run's equilibrated curve against the reference (module docstring)."""
-    o = np.argsort(p)
-    sel = (phi_ref <= PHI_COMPARE) & (p_ref >= p.min()) & (p_ref <= p.max())
-    phi_at = np.interp(np.log(p_ref[sel]), np.log(p[o]), phi[o])
-    e_phi = float(np.max(np.abs(phi_at / phi_ref[sel] - 1))) if sel.any() else np.nan
-    o = np.argsort(phi_ref)
-    ok = (phi <= PHI_COMPARE) & (phi >= phi_ref.min()) & (phi <= phi_ref.max())
-    p_at = np.exp(np.interp(phi[ok], phi_ref[o], np.log(p_ref[o])))
-    e_p = float(np.max(np.abs(p[ok] / p_at - 1))) if ok.any() else np.nan
-    return e_phi, e_p
-
-
 def run_case(work: Path, element: str, n: int, h: float, ref) -> dict:
     from compute.errors import SimulationError
     from compute.run import Run
-    from post.single_particle import curve
+    from post.single_particle import curve, curve_errors
     from pre.single_particle import write
 
     d = work / f"{element}_{n}_h{h:g}"
@@ -81,7 +67,7 @@ def run_case(work: Path, element: str, n: int, h: float, ref) -> dict:
     try:
         _, p, phi = curve(d / "out")
         row["stages"] = len(p)
-        row["err_phi"], row["err_P"] = errors(p, phi, *ref)
+        row["err_phi"], row["err_P"] = curve_errors(p, phi, *ref, PHI_COMPARE)
     except Exception as exc:  # noqa: BLE001 - a failed case is reported, not fatal
         row["status"] += f"; post: {exc}"
     return row

@@ -2,21 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
+from compute.errors import InputError
 
 
-class OutputError(ValueError):
-    """An output folder is missing, malformed or inconsistent (docs/FORMATS.md).
-
-    The message names the file, the field and what was expected.
-    """
-
-    def __init__(self, file: str | Path, field: str, expected: str, got: object = None):
-        self.file, self.field, self.expected = str(file), field, expected
-        message = f"{file}: field '{field}': expected {expected}"
-        if got is not None:
-            message += f", got {got!r}"
-        super().__init__(message)
+class OutputError(InputError):
+    """An output folder is missing, malformed or inconsistent (docs/FORMATS.md); the message
+    names the file, the field and what was expected (the toolkit's one input-error model)."""
 
 
 class RenderError(RuntimeError):

@@ -23,14 +23,19 @@ def young_modulus(out: Path) -> float:
     return float(soft[0]["young"])
 
 
+def element_count(scene: Path) -> int:
+    """Number of triangles of the scene's meshes (its bodies file)."""
+    from meshio import vtu
+
+    return sum(len(c.data) for c in vtu.read(Path(scene) / "bodies.vtu").cells if c.type.startswith("triangle"))
+
+
 def mesh_label(out: Path) -> str:
     """'T6, 92 elements': the element type and count of the run's soft disk (for legends)."""
     data = tomllib.loads((out / "scene.toml").read_text())
     m = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"][0]
     try:
-        import meshio
-
-        n = sum(len(c.data) for c in meshio.read(out.parent / "scene" / "bodies.vtu").cells)
+        n = element_count(out.parent / "scene")
     except Exception:  # noqa: BLE001 - the label is cosmetic
         n = "?"
     return f"{m['element']}, {n} elements"
@@ -56,3 +61,20 @@ def fit(p: np.ndarray, phi: np.ndarray, p_max: float, phi_max: float):
         raise ValueError(f"fit of Eq. 2: fewer than 3 equilibrated frames with P/E <= {p_max} and "
                          f"phi <= {phi_max}")
     return fit_single_particle(phi[sel], p[sel]), int(sel.sum())
+
+
+def curve_errors(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.ndarray,
+                 phi_max: float = 0.95) -> tuple[float, float]:
+    """Largest relative differences of a curve (P/E (n,), φ_p (n,)) from a reference curve (m,),
+    over φ_p <= ``phi_max``: of φ_p at equal P (the curve interpolated in log P at the reference
+    pressures inside its range) and of P at equal φ_p (the reference interpolated, in log P, at
+    the curve's φ_p). NaN where the curves do not overlap."""
+    o = np.argsort(p)
+    sel = (phi_ref <= phi_max) & (p_ref >= p.min()) & (p_ref <= p.max())
+    phi_at = np.interp(np.log(p_ref[sel]), np.log(p[o]), phi[o])
+    e_phi = float(np.max(np.abs(phi_at / phi_ref[sel] - 1))) if sel.any() else np.nan
+    o = np.argsort(phi_ref)
+    ok = (phi <= phi_max) & (phi >= phi_ref.min()) & (phi <= phi_ref.max())
+    p_at = np.exp(np.interp(phi[ok], phi_ref[o], np.log(p_ref[o])))
+    e_p = float(np.max(np.abs(p[ok] / p_at - 1))) if ok.any() else np.nan
+    return e_phi, e_p

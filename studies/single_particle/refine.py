@@ -35,6 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
+from post.single_particle import curve_errors, element_count
+from post.table import read_measures
+
 ROOT = Path(__file__).resolve().parents[2]
 
 # series -> levels (target elements, boundary segments or None for a uniform mesh)
@@ -76,28 +79,10 @@ def run_level(work: Path, series: str, n: int, segments: int | None) -> Path:
 
 
 def read_curve(d: Path) -> tuple[np.ndarray, np.ndarray]:
-    rows = [r for r in csv.DictReader(open(d / "out" / "post" / "measures.csv")) if r["equilibrated"] == "1"]
-    return np.array([float(r["P_walls"]) for r in rows]), np.array([float(r["phi"]) for r in rows])
-
-
-def differences(coarse, fine) -> tuple[float, float]:
-    """Largest relative differences of phi at equal P and of P at equal phi (phi <= PHI_COMPARE)."""
-    (pc, fc), (pf, ff) = coarse, fine
-    sel = (fc <= PHI_COMPARE) & (ff <= PHI_COMPARE)
-    dphi = float(np.max(np.abs(fc[sel] / ff[sel] - 1))) if sel.any() else np.nan
-    # P at equal phi: interpolate log P of the fine curve at the coarse phi values (monotone part)
-    ok = (fc <= PHI_COMPARE) & (fc >= ff.min()) & (fc <= ff.max())
-    order = np.argsort(ff)
-    p_fine = np.exp(np.interp(fc[ok], ff[order], np.log(pf[order])))
-    dp = float(np.max(np.abs(pc[ok] / p_fine - 1))) if ok.any() else np.nan
-    return dphi, dp
-
-
-def element_count(d: Path) -> int:
-    """Number of triangles of the level's mesh (from its bodies file)."""
-    from meshio import vtu
-
-    return sum(len(c.data) for c in vtu.read(d / "scene" / "bodies.vtu").cells if c.type.startswith("triangle"))
+    """(P_walls/E, φ_p) of the level's equilibrated stages (its out/post/measures.csv)."""
+    m = read_measures(d / "out" / "post" / "measures.csv")
+    eq = m["equilibrated"].astype(bool)
+    return m["P_walls"][eq], m["phi"][eq]
 
 
 def main(argv=None) -> int:
@@ -125,7 +110,7 @@ def main(argv=None) -> int:
         done = dict(zip(by_cost, pool.map(lambda lv: run_level(work, *lv), by_cost)))
     dirs = {lv: done[lv] for lv in levels}
     curves = {k: read_curve(d) for k, d in dirs.items()}
-    counts = {k: element_count(d) for k, d in dirs.items()}
+    counts = {k: element_count(d / "scene") for k, d in dirs.items()}
     with open(work / "refinement.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["series", "elements", "boundary_segments", "P_over_E", "phi_p"])
@@ -138,7 +123,7 @@ def main(argv=None) -> int:
         for e in SERIES:
             ls = sorted((k for k in curves if k[0] == e), key=counts.get)
             for k0, k1 in zip(ls, ls[1:]):
-                dphi, dp = differences(curves[k0], curves[k1])
+                dphi, dp = curve_errors(*curves[k0], *curves[k1], PHI_COMPARE)
                 w.writerow([e, counts[k0], counts[k1], f"{dphi:.3g}", f"{dp:.3g}"])
     with open(work / "refinement_fits.csv", "w", newline="") as fh:
         w = csv.writer(fh)

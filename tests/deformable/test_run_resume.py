@@ -6,7 +6,6 @@ import pytest
 
 from compute.run import Run
 from pre import single_particle
-from tests.deformable import scenes
 
 
 class Stop(Exception):
