@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from compute.errors import SceneError
+from compute.errors import InputError, SceneError
 from compute.schema import SCALE, TINY
+from compute.vtu_io import cell_field, read_vtu
 
 CELL_ELEMENT = {"triangle": "T3", "triangle6": "T6"}
 ELEMENT_CELL = {v: k for k, v in CELL_ELEMENT.items()}
@@ -31,98 +32,105 @@ class DeformableBody:
     element: str
 
 
-def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
-    """Read and validate ``path``; return the body arrays of :class:`compute.scene.Scene`."""
-    from meshio import vtu  # not meshio.read, which prints and calls sys.exit on a corrupt file
+@dataclass(frozen=True)
+class Layout:
+    """A bodies file (a scene's or a frame's) checked for the layout both share.
 
+    ``points`` (n, 2) within ±SCALE; ``mesh.cells`` blocks of type vertex, triangle or triangle6
+    whose indices point into the points; per cell, concatenated over the blocks: ``block`` (the
+    block index), ``body`` (ids contiguous 0..N-1); per body: ``radius`` (N,) positive, one per
+    body, and ``rigid`` (N,) (one vertex cell per rigid body, no triangle on it)."""
+
+    mesh: object
+    points: np.ndarray
+    block: np.ndarray
+    body: np.ndarray
+    radius: np.ndarray
+    rigid: np.ndarray
+
+    @property
+    def n_bodies(self) -> int:
+        return len(self.radius)
+
+    def vertex_cells(self) -> np.ndarray:
+        """Mask (n_cells,) of the vertex (rigid disk) cells."""
+        return np.isin(self.block, [k for k, c in enumerate(self.mesh.cells) if c.type == "vertex"])
+
+
+def read_layout(path: str | Path, error: type[InputError] = SceneError) -> Layout:
+    """Read ``path`` and check the bodies layout (:class:`Layout`); problems raise ``error``."""
     path = Path(path)
-    if not path.is_file():
-        raise SceneError(path, "<file>", "an existing VTU bodies file")
-    try:
-        mesh = vtu.read(path)
-    except Exception as exc:  # meshio raises many types on truncated / corrupt XML
-        raise SceneError(path, "<file>", "a complete, readable VTU file", f"{type(exc).__name__}: {exc}") from None
+    mesh = read_vtu(path, error)
     points = np.asarray(mesh.points, dtype=float)[:, :2]
     if not np.all(np.isfinite(points)) or (points.size and np.abs(points).max() > SCALE):
-        raise SceneError(path, "points", f"finite coordinates within ±{SCALE:g}")
+        raise error(path, "points", f"finite coordinates within ±{SCALE:g}")
     for block in mesh.cells:
+        if block.type not in ("vertex", *CELL_ELEMENT):
+            raise error(path, "cells", "cell blocks of type vertex, triangle or triangle6", block.type)
         if block.data.size and (block.data.min() < 0 or block.data.max() >= len(points)):
-            raise SceneError(path, f"cells ({block.type})", f"point indices in 0..{len(points) - 1}",
-                             int(block.data.max() if block.data.max() >= len(points) else block.data.min()))
-    fields = {}
-    for name in ("body", "material", "radius"):
-        if name not in mesh.cell_data:
-            raise SceneError(path, f"cell_data.{name}", "a cell array on every cell block (missing)")
-        blocks = mesh.cell_data[name]
-        if len(blocks) != len(mesh.cells) or any(len(b) != len(c.data) for b, c in zip(blocks, mesh.cells)):
-            raise SceneError(path, f"cell_data.{name}", "one value per cell")
-        fields[name] = [np.asarray(b).reshape(len(b), -1)[:, 0] for b in blocks]
-        if name != "radius" and any(not np.all(np.isfinite(b) & (b == np.round(b)) & (np.abs(b) < 2**31))
-                                    for b in fields[name]):
-            raise SceneError(path, f"cell_data.{name}", "integers (below 2^31 in magnitude)")
-    n_cells = sum(len(c.data) for c in mesh.cells)
-    if any(len(b) and (b.max() >= n_cells) for b in fields["body"]):
-        raise SceneError(path, "cell_data.body", f"contiguous body ids 0..N-1 (N <= {n_cells} cells)",
-                         int(max(b.max() for b in fields["body"] if len(b))))
+            raise error(path, f"cells ({block.type})", f"point indices in 0..{len(points) - 1}",
+                        int(block.data.max() if block.data.max() >= len(points) else block.data.min()))
+    body = cell_field(mesh, path, "body", error, integer=True)
+    radius = cell_field(mesh, path, "radius", error)
+    n_bodies = int(body.max()) + 1 if len(body) else 0
+    if n_bodies == 0 or body.min() < 0 or n_bodies > len(body) or len(np.unique(body)) != n_bodies:
+        raise error(path, "cell_data.body", "contiguous body ids 0..N-1 and at least one body",
+                    f"ids from {body.min() if len(body) else None} to {body.max() if len(body) else None}")
+    if radius.min() < TINY or radius.max() > SCALE:
+        raise error(path, "cell_data.radius", f"positive radii in [{TINY:g}, {SCALE:g}]",
+                    float(radius.min() if radius.min() < TINY else radius.max()))
+    per_body = np.full(n_bodies, np.nan)
+    per_body[body] = radius
+    if np.any(per_body[body] != radius):
+        b = int(body[np.argmax(per_body[body] != radius)])
+        raise error(path, f"cell_data of body {b}", "one radius per body")
+    block = np.repeat(np.arange(len(mesh.cells)), [len(c.data) for c in mesh.cells])
+    layout = Layout(mesh, points, block, body, per_body, np.zeros(n_bodies, bool))
+    vertex = layout.vertex_cells()
+    layout.rigid[body[vertex]] = True
+    if len(np.unique(body[vertex])) != vertex.sum() or np.any(layout.rigid[body[~vertex]]):
+        raise error(path, "cell_data.body", "one vertex cell per rigid body and no triangles on it")
+    return layout
 
-    rigid_ids, rigid_centres, rigid_radii, deformable = [], [], [], []
-    n_bodies = 1 + max((int(b.max()) for b in fields["body"] if len(b)), default=-1)
-    body_material = np.full(n_bodies, -1)
-    radius = np.full(n_bodies, np.nan)
-    for k, block in enumerate(mesh.cells):
-        body = fields["body"][k].astype(np.int64)
-        mat = fields["material"][k].astype(np.int64)
-        rad = fields["radius"][k].astype(float)
-        if len(body) and body.min() < 0:
-            raise SceneError(path, "cell_data.body", "body ids >= 0", int(body.min()))
-        if len(mat) and (mat.min() < 0 or mat.max() >= len(material_names)):
-            raise SceneError(path, "cell_data.material", f"indices into bodies.materials (0..{len(material_names) - 1})",
-                             int(mat.min() if mat.min() < 0 else mat.max()))
-        if not np.all(np.isfinite(rad)) or (len(rad) and (rad.min() < TINY or rad.max() > SCALE)):
-            raise SceneError(path, "cell_data.radius", f"positive radii in [{TINY:g}, {SCALE:g}]",
-                             float(rad.min() if len(rad) and rad.min() < TINY else rad.max()))
-        if block.type == "vertex":
-            kinds = {materials[material_names[m]].kind for m in mat}
-            if kinds - {"rigid"}:
-                raise SceneError(path, "cell_data.material", "a rigid material for vertex (rigid disk) cells",
-                                 sorted(kinds))
-            rigid_ids.append(body)
-            rigid_centres.append(points[block.data[:, 0]])
-            rigid_radii.append(rad)
-        elif block.type in CELL_ELEMENT:
-            for b in np.unique(body):
-                sel = body == b
-                m = materials[material_names[int(mat[sel][0])]]
-                if np.any(mat[sel] != mat[sel][0]) or m.kind == "rigid" or m.element != CELL_ELEMENT[block.type]:
-                    raise SceneError(path, f"cell_data.material of body {b}",
-                                     f"one neo_hookean material with element {CELL_ELEMENT[block.type]}")
-                cells = block.data[sel]
-                used, local = np.unique(cells, return_inverse=True)
-                deformable.append(DeformableBody(int(b), points[used].copy(),
-                                                 local.reshape(cells.shape).astype(np.int64),
-                                                 CELL_ELEMENT[block.type]))
-        else:
-            raise SceneError(path, "cells", "cell blocks of type vertex, triangle or triangle6", block.type)
-        for b, m, r in zip(body, mat, rad):
-            if body_material[b] not in (-1, m) or not (np.isnan(radius[b]) or radius[b] == r):
-                raise SceneError(path, f"cell_data of body {b}", "one material and one radius per body")
-        body_material[body] = mat
-        radius[body] = rad
-    if n_bodies == 0:
-        raise SceneError(path, "cells", "at least one body")
-    if np.any(body_material < 0):
-        raise SceneError(path, "cell_data.body", f"contiguous body ids 0..{n_bodies - 1}",
-                         f"missing {np.flatnonzero(body_material < 0)[:5].tolist()}")
-    rigid_ids = np.concatenate(rigid_ids) if rigid_ids else np.zeros(0, np.int64)
-    if len(np.unique(rigid_ids)) != len(rigid_ids):
-        raise SceneError(path, "cell_data.body", "one vertex cell per rigid body")
+
+def read_bodies(path: Path, material_names: list[str], materials: dict) -> dict:
+    """Read and validate the scene's bodies file ``path``; return the body arrays of
+    :class:`compute.scene.Scene`."""
+    path = Path(path)
+    lay = read_layout(path, SceneError)
+    mat = cell_field(lay.mesh, path, "material", SceneError, integer=True)
+    if mat.min() < 0 or mat.max() >= len(material_names):
+        raise SceneError(path, "cell_data.material", f"indices into bodies.materials (0..{len(material_names) - 1})",
+                         int(mat.min() if mat.min() < 0 else mat.max()))
+    body_material = np.full(lay.n_bodies, -1)
+    body_material[lay.body] = mat
+    if np.any(body_material[lay.body] != mat):
+        b = int(lay.body[np.argmax(body_material[lay.body] != mat)])
+        raise SceneError(path, f"cell_data of body {b}", "one material per body")
+    vertex = lay.vertex_cells()
+    kinds = {materials[material_names[m]].kind for m in mat[vertex]}
+    if kinds - {"rigid"}:
+        raise SceneError(path, "cell_data.material", "a rigid material for vertex (rigid disk) cells", sorted(kinds))
+    deformable = []
+    for k, block in enumerate(lay.mesh.cells):
+        if block.type not in CELL_ELEMENT:
+            continue
+        body = lay.body[lay.block == k]
+        for b in np.unique(body):
+            m = materials[material_names[body_material[b]]]
+            if m.kind == "rigid" or m.element != CELL_ELEMENT[block.type]:
+                raise SceneError(path, f"cell_data.material of body {b}",
+                                 f"one neo_hookean material with element {CELL_ELEMENT[block.type]}")
+            cells = block.data[body == b]
+            used, local = np.unique(cells, return_inverse=True)
+            deformable.append(DeformableBody(int(b), lay.points[used].copy(), local.reshape(cells.shape).astype(np.int64),
+                                             CELL_ELEMENT[block.type]))
+    rigid_ids = lay.body[vertex]
+    centres = np.concatenate([lay.points[c.data[:, 0]] for c in lay.mesh.cells if c.type == "vertex"]
+                             or [np.zeros((0, 2))])
     deformable.sort(key=lambda d: d.body)
-    out = dict(
-        body_material=body_material, radius=radius, rigid_ids=rigid_ids,
-        rigid_centres=np.concatenate(rigid_centres) if rigid_centres else np.zeros((0, 2)),
-        rigid_radii=np.concatenate(rigid_radii) if rigid_radii else np.zeros(0),
-        deformable=deformable,
-    )
+    out = dict(body_material=body_material, radius=lay.radius, rigid_ids=rigid_ids, rigid_centres=centres,
+               rigid_radii=lay.radius[rigid_ids], deformable=deformable)
     _check_no_overlap(path, out)
     return out
 

@@ -12,15 +12,15 @@ it is recognised from the piece header and read as zero contacts.
 from __future__ import annotations
 
 import csv
-import xml.etree.ElementTree as ElementTree
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from compute.bodies_io import CELL_ELEMENT
+from compute.bodies_io import CELL_ELEMENT, read_layout
 from compute.output import FRAME_COLUMNS, frame_path  # the output layout is written by compute, once
+from compute.vtu_io import cell_field, read_vtu
 from post.errors import OutputError
 
 WALL_IDS = (-1, -2, -3, -4)  # left (x = xmin), right (x = xmax), bottom (y = ymin), top (y = ymax)
@@ -154,100 +154,36 @@ def _frame_record(path: Path, line: int, row: dict[str, str]) -> FrameRecord:
                        box=tuple(number(name, float) for name in ("xmin", "xmax", "ymin", "ymax")))
 
 
-def _read_vtu(path: Path):
-    """The meshio mesh of ``path``, or None for a piece with no cells."""
-    from meshio import vtu  # not meshio.read, which prints and calls sys.exit on a ReadError
-
-    if not path.is_file():
-        raise OutputError(path, "<file>", "an existing VTU file")
-    try:
-        return vtu.read(path)
-    except Exception as exc:  # meshio raises many types on truncated or corrupt XML
-        if _has_no_cells(path):
-            return None
-        raise OutputError(path, "<file>", "a complete VTU file readable by meshio",
-                          f"{type(exc).__name__}: {exc}") from None
-
-
-def _has_no_cells(path: Path) -> bool:
-    try:
-        for _, element in ElementTree.iterparse(path, events=("start",)):
-            if element.tag == "Piece":
-                return element.get("NumberOfCells", "").strip() == "0"
-    except ElementTree.ParseError:
-        return False
-    return False
+def _read_vtu(path: Path, allow_empty: bool = False):
+    return read_vtu(path, OutputError, allow_empty)
 
 
 def _cell_field(mesh, path: Path, name: str, components: int = 1) -> np.ndarray:
-    """Cell field ``name`` concatenated over the cell blocks: shape (n_cells,) for
-    ``components == 1``, else (n_cells, components) taken from 2 or 3 stored components."""
-    if name not in mesh.cell_data:
-        raise OutputError(path, f"cell_data.{name}", "a cell array on every cell block (missing)")
-    blocks = mesh.cell_data[name]
-    if len(blocks) != len(mesh.cells) or any(len(b) != len(c.data) for b, c in zip(blocks, mesh.cells)):
-        raise OutputError(path, f"cell_data.{name}", "one value per cell on every cell block")
-    values = np.concatenate([np.asarray(b, dtype=float).reshape(len(b), -1) for b in blocks])
-    stored = values.shape[1]
-    if (components == 1 and stored != 1) or (components > 1 and stored not in (components, 3)):
-        expected = "a scalar" if components == 1 else f"{components} or 3 components"
-        raise OutputError(path, f"cell_data.{name}", expected, f"{stored} components")
-    if not np.all(np.isfinite(values)):
-        raise OutputError(path, f"cell_data.{name}", "finite values")
-    return values[:, 0] if components == 1 else values[:, :components]
+    return cell_field(mesh, path, name, OutputError, components)
 
 
 def _integer_field(mesh, path: Path, name: str) -> np.ndarray:
-    values = _cell_field(mesh, path, name)
-    if not np.all(values == np.round(values)):
-        raise OutputError(path, f"cell_data.{name}", "integer values")
-    return values.astype(np.int64)
+    return cell_field(mesh, path, name, OutputError, integer=True)
 
 
 def read_bodies(path: str | Path) -> Bodies:
-    """Read and validate a ``bodies_NNNNN.vtu`` frame (fields body, radius, pressure)."""
+    """Read and validate a ``bodies_NNNNN.vtu`` frame (the bodies layout, plus the cell pressure)."""
     path = Path(path)
-    mesh = _read_vtu(path)
-    if mesh is None:
-        raise OutputError(path, "<cells>", "at least one body cell", 0)
-    points = np.asarray(mesh.points, dtype=float)[:, :2]
-    if not np.all(np.isfinite(points)):
-        raise OutputError(path, "points", "finite coordinates")
-    unknown = sorted({c.type for c in mesh.cells} - {"vertex", *CELL_ELEMENT})
-    if unknown:
-        raise OutputError(path, "cells", "vertex, triangle or triangle6 cell blocks", unknown)
-    body = _integer_field(mesh, path, "body")
-    radius = _cell_field(mesh, path, "radius")
-    pressure = _cell_field(mesh, path, "pressure")
-    n_bodies = int(body.max()) + 1 if len(body) else 0
-    if len(body) == 0 or body.min() < 0 or len(np.unique(body)) != n_bodies:
-        raise OutputError(path, "cell_data.body", "contiguous body ids 0 .. N-1")
-    if radius.min() <= 0:
-        raise OutputError(path, "cell_data.radius", "positive radii", float(radius.min()))
-
-    block_of_cell = np.repeat(np.arange(len(mesh.cells)), [len(c.data) for c in mesh.cells])
-    is_vertex = np.isin(block_of_cell, [k for k, c in enumerate(mesh.cells) if c.type == "vertex"])
-    rigid_ids = body[is_vertex]
-    rigid = np.zeros(n_bodies, dtype=bool)
-    rigid[rigid_ids] = True
-    if len(np.unique(rigid_ids)) != len(rigid_ids) or np.any(rigid[body[~is_vertex]]):
-        raise OutputError(path, "cell_data.body", "one vertex cell per rigid body and no triangles on it")
-    body_radius = np.empty(n_bodies)
-    body_radius[body] = radius
-
-    rigid_centres = np.concatenate([points[c.data[:, 0]] for c in mesh.cells if c.type == "vertex"]
+    lay = read_layout(path, OutputError)
+    pressure = _cell_field(lay.mesh, path, "pressure")
+    rigid_centres = np.concatenate([lay.points[c.data[:, 0]] for c in lay.mesh.cells if c.type == "vertex"]
                                    or [np.empty((0, 2))])
     meshes = tuple(MeshBlock(element=CELL_ELEMENT[c.type], cells=np.asarray(c.data, dtype=np.int64),
-                             body=body[block_of_cell == k], pressure=pressure[block_of_cell == k])
-                   for k, c in enumerate(mesh.cells) if c.type in CELL_ELEMENT)
-    return Bodies(points=points, radius=body_radius, rigid=rigid, rigid_ids=rigid_ids,
+                             body=lay.body[lay.block == k], pressure=pressure[lay.block == k])
+                   for k, c in enumerate(lay.mesh.cells) if c.type in CELL_ELEMENT)
+    return Bodies(points=lay.points, radius=lay.radius, rigid=lay.rigid, rigid_ids=lay.body[lay.vertex_cells()],
                   rigid_centres=rigid_centres, meshes=meshes)
 
 
 def read_contacts(path: str | Path, n_bodies: int) -> FrameContacts:
     """Read and validate a ``contacts_NNNNN.vtu`` frame of a packing of ``n_bodies`` bodies."""
     path = Path(path)
-    mesh = _read_vtu(path)
+    mesh = _read_vtu(path, allow_empty=True)
     if mesh is None:
         return FrameContacts(body_i=np.empty(0, np.int64), body_j=np.empty(0, np.int64), force=np.empty((0, 2)),
                         fn=np.empty(0), branch=np.empty((0, 2)), segments=np.empty((0, 2, 2)))
@@ -270,7 +206,7 @@ def read_contacts(path: str | Path, n_bodies: int) -> FrameContacts:
 def read_walls(path: str | Path) -> Walls:
     """Read and validate a ``walls_NNNNN.vtu`` frame; the walls are returned in WALL_IDS order."""
     path = Path(path)
-    mesh = _read_vtu(path)
+    mesh = _read_vtu(path, allow_empty=True)
     if mesh is None or any(c.type != "line" for c in mesh.cells):
         raise OutputError(path, "cells", "four line cells (the box edges)")
     wall = _integer_field(mesh, path, "wall")

@@ -108,7 +108,7 @@ def test_body_outside_walls(scene):
 def test_truncated_bodies_file(scene):
     f = scene / "bodies.vtu"
     f.write_bytes(f.read_bytes()[: len(f.read_bytes()) // 2])
-    _expect(scene, "bodies.vtu", "<file>", "a complete, readable VTU file")
+    _expect(scene, "bodies.vtu", "<file>", "a complete VTU file readable by meshio")
 
 
 def test_missing_bodies_field(scene):
