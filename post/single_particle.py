@@ -78,3 +78,13 @@ def curve_errors(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.
     p_at = np.exp(np.interp(phi[ok], phi_ref[o], np.log(p_ref[o])))
     e_p = float(np.max(np.abs(p[ok] / p_at - 1))) if ok.any() else np.nan
     return e_phi, e_p
+
+
+def write_curve(path: Path, p: np.ndarray, phi: np.ndarray, comment: str) -> Path:
+    """A curve (P/E (n,), φ_p (n,)) as CSV with a comment line: the layout of the regression data
+    (``# comment``, then ``P_over_E,phi_p`` and one row per stage, floats written exactly)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(p, phi))
+    path.write_text(f"# {comment}\nP_over_E,phi_p\n{rows}")
+    return path

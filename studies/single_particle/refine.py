@@ -35,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from post.single_particle import curve_errors, element_count
+from compute.progress import read_progress
+from post.single_particle import curve_errors, element_count, write_curve
 from post.table import read_measures
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -131,9 +132,8 @@ def main(argv=None) -> int:
                     "steps", "seconds"])
         for (e, n, b), d in dirs.items():
             fit = json.loads((d / "out" / "post" / "fit.json").read_text())
-            log = (d / "compute.log").read_text().strip().splitlines()[-1] if (d / "compute.log").is_file() else ""
-            parts = log.split()
-            steps, secs = (parts[0], parts[3]) if len(parts) > 3 and parts[1] == "steps" else ("", "")
+            progress = read_progress(d / "out") or {}
+            steps, secs = progress.get("step", ""), f"{progress['elapsed']:.1f}" if "elapsed" in progress else ""
             w.writerow([e[:2], counts[(e, n, b)], b or "", f"{fit['b']:.4f}", f"{fit['phi_p_max']:.4f}",
                         f"{fit['phi_range'][0]:.4f}", f"{fit['phi_range'][1]:.4f}", fit["n_points"], steps, secs])
     from post.plots import new_figure, save_figure
@@ -149,24 +149,16 @@ def main(argv=None) -> int:
         ax.legend(fontsize=7)
     save_figure(fig, work / "refinement.png")
     if a.data:
-        data = Path(a.data)
-        data.mkdir(parents=True, exist_ok=True)
         graded = [k for k in curves if k[0] == "T6g"]
-        finest = max(graded, key=counts.get) if graded else None
-        for k, name in ((finest, "reference_T6g.csv"), (("T6", 92, None), "default_T6_92.csv")):
-            if k not in curves:
-                continue
-            p, f = curves[k]
-            with open(data / name, "w", newline="") as fh:
-                fh.write(f"# single-particle curve, T6 mean dilatation, {counts[k]} elements"
-                         + (f" graded to {k[2]} boundary segments" if k[2] else "")
-                         + ", equilibrated stages (studies/single_particle/refine.py, "
-                         + (f"pre.py settings of the graded series: {GRADED_STAGES} stages, h = {GRADED_TIME_STEP:g})\n"
-                            if k[2] else "default pre.py settings)\n"))
-                w = csv.writer(fh)
-                w.writerow(["P_over_E", "phi_p"])
-                for pi, fi in zip(p, f):
-                    w.writerow([repr(float(pi)), repr(float(fi))])
+        for k, name in ((max(graded, key=counts.get) if graded else None, "reference_T6g.csv"),
+                        (("T6", 92, None), "default_T6_92.csv")):
+            if k in curves:
+                settings = (f"pre settings of the graded series: {GRADED_STAGES} stages, h = {GRADED_TIME_STEP:g}"
+                            if k[2] else "default pre settings")
+                write_curve(Path(a.data) / name, *curves[k],
+                            f"single-particle curve, T6 mean dilatation, {counts[k]} elements"
+                            + (f" graded to {k[2]} boundary segments" if k[2] else "")
+                            + f", equilibrated stages (python -m studies.single_particle.refine, {settings})")
     print((work / "refinement_differences.csv").read_text())
     print((work / "refinement_fits.csv").read_text())
     return 0

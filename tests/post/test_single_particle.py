@@ -35,3 +35,13 @@ def test_fit_recovers_eq2_and_refuses_too_few_points():
     assert result.params["phi_p_max"] == pytest.approx(0.98, rel=1e-8)
     with pytest.raises(ValueError, match="fewer than 3"):
         fit(p, phi, 1e-3, 0.99)
+
+
+def test_curve_file_round_trip(tmp_path):
+    from post.single_particle import write_curve
+
+    p, phi = _curve()
+    path = write_curve(tmp_path / "data" / "curve.csv", p, phi, "a test curve")
+    data = np.loadtxt(path, delimiter=",", comments="#", skiprows=2)
+    assert np.array_equal(data[:, 0], p) and np.array_equal(data[:, 1], phi)
+    assert path.read_text().startswith("# a test curve\nP_over_E,phi_p\n")
