@@ -36,6 +36,25 @@ def frame_path(out: str | Path, series: str, frame: int) -> Path:
     return Path(out) / "frames" / f"{series}_{frame:05d}.vtu"
 
 
+def remove_temporaries(out: str | Path) -> None:
+    """Delete what an interrupted atomic write left behind (``*.tmp``, ``frames/*.tmp.vtu``,
+    ``checkpoint/*.tmp.npz``): every file is written to a temporary name, then renamed."""
+    for pattern in ("*.tmp", "frames/*.tmp.vtu", "checkpoint/*.tmp.npz"):
+        for path in Path(out).glob(pattern):
+            path.unlink()
+
+
+def frame_files(out: str | Path) -> dict[Path, int]:
+    """Every frame file of OUT/frames (the three series) and its frame number."""
+    files = {}
+    for series in SERIES:
+        for path in (Path(out) / "frames").glob(f"{series}_*.vtu"):
+            number = path.stem[len(series) + 1:]
+            if number.isdigit():
+                files[path] = int(number)
+    return files
+
+
 def write_contacts(path: Path, contacts: ContactRows, centres_i: np.ndarray, centres_j: np.ndarray,
                    time_step: float) -> None:
     """Active contacts (r_n > 0) as lines from centre i to centre j (or the wall contact point).

@@ -60,6 +60,7 @@ class Run:
     def _start(self, resume: bool) -> State:
         (self.out / "frames").mkdir(parents=True, exist_ok=True)
         (self.out / "checkpoint").mkdir(exist_ok=True)
+        output.remove_temporaries(self.out)
         ckpt = self.out / CHECKPOINT
         if resume and ckpt.is_file():
             self._check_same_scene()
@@ -70,8 +71,8 @@ class Run:
             for name in summary.MARKERS:
                 (self.out / name).unlink(missing_ok=True)
             rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
-            for f in (self.out / "frames").glob("*.vtu"):
-                if int(f.stem.rsplit("_", 1)[1]) >= state.frame:
+            for f, frame in output.frame_files(self.out).items():
+                if frame >= state.frame:
                     f.unlink()
             output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
             output.write_pvd(self.out, rows)
@@ -79,7 +80,7 @@ class Run:
             return state
         if resume:
             self.log(f"no checkpoint in {self.out}: starting from the scene")
-        for f in (self.out / "frames").glob("*.vtu"):
+        for f in output.frame_files(self.out):
             f.unlink()
         for name in ("frames.csv", CHECKPOINT, "FAILED", "summary.json", *summary.MARKERS):
             (self.out / name).unlink(missing_ok=True)

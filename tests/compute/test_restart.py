@@ -132,3 +132,17 @@ def test_resume_refuses_a_changed_scene(tmp_path):
     toml.write_text(toml.read_text().replace("time_step = 0.1", "time_step = 0.2"))
     with pytest.raises(OutputFolderError, match=r"out/scene.toml: field 'solver.time_step'.*changed: solver.time_step"):
         run(scene, out, resume=True, log=lambda m: None)
+
+
+def test_resume_after_a_kill_mid_write_removes_the_temporary_files(tmp_path):
+    scene = _scene(tmp_path / "scene")
+    out = tmp_path / "out"
+    subprocess.run([sys.executable, "-m", "compute", str(scene), "--out", str(out)], check=True, capture_output=True)
+    stale = [out / "frames" / "bodies_00099.tmp.vtu", out / "history.tmp", out / "bodies.pvd.tmp",
+             out / "checkpoint" / "state.tmp.npz", out / "progress.json.tmp"]
+    for path in stale:
+        path.write_text("cut by a kill")
+    (out / "COMPLETE").unlink(missing_ok=True)
+    (out / "INCOMPLETE").unlink(missing_ok=True)
+    run(scene, out, resume=True, log=lambda m: None)  # a frame-number parse of 'bodies_00099.tmp' failed here
+    assert not any(path.exists() for path in stale)
