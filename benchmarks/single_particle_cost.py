@@ -16,9 +16,9 @@ and 0.13 % in P_p/E), over its stages, phi_p <= 0.95 (P/E <= 0.16):
 - err_P: max |P_run / P_ref(phi_run) - 1| over the run's equilibrated stages with phi_p <= 0.95
   inside the reference's phi range, P_ref(phi) interpolated linearly in ln P (P_p/E at equal phi_p).
 
-Writes benchmarks/results/single_particle_cost.{md,csv,png}.
+Writes benchmarks/results/OUTPUT.{md,csv,png} (--output, default single_particle_cost).
 
-    python benchmarks/single_particle_cost.py [--time-steps 10 5] [--elements 30 92 300 1000]
+    python benchmarks/single_particle_cost.py [--time-steps 10 5] [--elements 30 92 300 1000] [--graded 30:24 ...]
 """
 
 from __future__ import annotations
@@ -46,14 +46,19 @@ def reference() -> tuple[np.ndarray, np.ndarray]:
     return data[:, 0], data[:, 1]
 
 
-def run_case(work: Path, element: str, n: int, h: float, ref) -> dict:
+def run_case(work: Path, element: str, n: int, h: float, ref, segments: int | None = None) -> dict:
+    """One study run: ``n`` target elements (uniform), or ``segments`` boundary segments graded
+    inward to the interior size of the ``n``-element mesh."""
     from compute.errors import SimulationError
     from compute.run import Run
     from post.single_particle import curve, curve_errors
     from pre.single_particle import write
 
-    d = work / f"{element}_{n}_h{h:g}"
-    write(d / "scene", element=element, elements=n, time_step=h)
+    from pre.mesh import reference_disk_mesh
+
+    d = work / f"{element}_{n}_b{segments}_h{h:g}"
+    write(d / "scene", element=element, elements=n, time_step=h, boundary_segments=segments)
+    n_elements = len(reference_disk_mesh(n, element, segments).cells)
     t0 = time.perf_counter()
     run = Run(d / "scene", d / "out", log=lambda m: None, display=Display(1, stream=io.StringIO()))
     try:
@@ -62,7 +67,8 @@ def run_case(work: Path, element: str, n: int, h: float, ref) -> dict:
     except SimulationError as exc:
         status = f"failed ({exc})"
     seconds = time.perf_counter() - t0
-    row = dict(element=element, elements=n, h=h, status=status, seconds=seconds, steps=run.state.step,
+    row = dict(element=element, elements=n_elements, boundary_segments=segments or "", h=h, status=status,
+               seconds=seconds, steps=run.state.step,
                err_phi=np.nan, err_P=np.nan, stages=0)
     try:
         _, p, phi = curve(d / "out")
@@ -114,52 +120,55 @@ def main() -> None:
                     help="h in R sqrt(rho/E) (default: the study's 10 and 10/2; 20 stops at P/E = 0.63)")
     ap.add_argument("--skip", nargs="*", default=[], metavar="T6:1000:5",
                     help="element:elements:h combinations left out")
+    ap.add_argument("--graded", nargs="*", default=[], metavar="N:B",
+                    help="T6 meshes graded to B boundary segments, interior size of the N-element mesh")
+    ap.add_argument("--output", default="single_particle_cost", help="name of the result files in benchmarks/results")
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV of the last run")
     a = ap.parse_args()
     if a.plot_only:
         rows = [dict(r, elements=int(r["elements"]), h=float(r["h"]), seconds=float(r["seconds"]),
                      err_phi=float(r["err_phi"]), err_P=float(r["err_P"]))
-                for r in csv.DictReader(open(RESULTS / "single_particle_cost.csv"))]
-        plot(rows, RESULTS / "single_particle_cost.png")
+                for r in csv.DictReader(open(RESULTS / f"{a.output}.csv"))]
+        plot(rows, RESULTS / f"{a.output}.png")
         return
     ref = reference()
     skip = {tuple(s.split(":")) for s in a.skip}
     rows = []
     RESULTS.mkdir(exist_ok=True)
-    cols = ["element", "elements", "h", "status", "steps", "stages", "seconds", "err_phi", "err_P"]
+    cols = ["element", "elements", "boundary_segments", "h", "status", "steps", "stages", "seconds", "err_phi", "err_P"]
     t_all = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="sp_cost_") as tmp:
         for e in a.types:  # untimed warm-up: numba cache loading and imports, paid by the first run only
             run_case(Path(tmp) / "warmup", e, min(a.elements), a.time_steps[0], ref)
-        for n in a.elements:
-            for e in a.types:
-                for h in a.time_steps:
-                    if (e, str(n), f"{h:g}") in skip:
-                        continue
-                    rows.append(run_case(Path(tmp), e, n, h, ref))
-                    r = rows[-1]
-                    print(f"{e} {n:5d} h={h:g}: {r['status']}, {r['steps']} steps, {r['seconds']:.1f} s, "
-                          f"err_phi {r['err_phi']:.3g}, err_P {r['err_P']:.3g}", flush=True)
-                    with open(RESULTS / "single_particle_cost.csv", "w", newline="") as fh:
-                        w = csv.DictWriter(fh, cols, extrasaction="ignore")
-                        w.writeheader()
-                        w.writerows(rows)
+        cases = [(e, n, h, None) for n in a.elements for e in a.types for h in a.time_steps
+                 if (e, str(n), f"{h:g}") not in skip]
+        cases += [("T6", int(g.split(":")[0]), h, int(g.split(":")[1])) for g in a.graded for h in a.time_steps]
+        for e, n, h, segments in cases:
+            rows.append(run_case(Path(tmp), e, n, h, ref, segments))
+            r = rows[-1]
+            print(f"{e} {r['elements']:5d} (b {segments}) h={h:g}: {r['status']}, {r['steps']} steps, "
+                  f"{r['seconds']:.1f} s, err_phi {r['err_phi']:.3g}, err_P {r['err_P']:.3g}", flush=True)
+            with open(RESULTS / f"{a.output}.csv", "w", newline="") as fh:
+                w = csv.DictWriter(fh, cols, extrasaction="ignore")
+                w.writeheader()
+                w.writerows(rows)
     total = time.perf_counter() - t_all
-    plot(rows, RESULTS / "single_particle_cost.png")
+    plot(rows, RESULTS / f"{a.output}.png")
     lines = ["# Single particle: run time against error (reference: T6 graded to 960 boundary segments, 8690 elements)", "",
              "Errors over the reference stages with φ_p ≤ 0.95 (P/E ≤ 0.16): err φ = max relative error of "
              "φ_p at the reference's pressures; err P = max relative error of P_p/E at equal φ_p "
              "(interpolation in ln P). Run time = the study's compute stage (16 stages, P/E = 1e-3 … 1).", "",
-             "| element | elements | h | steps | run time (s) | err φ_p | err P_p/E | status |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| element | elements | boundary segments (graded) | h | steps | run time (s) | err φ_p | err P_p/E | status |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: (r["element"], r["elements"], -r["h"])):
-        lines.append(f"| {r['element']} | {r['elements']} | {r['h']:g} | {r['steps']} | {r['seconds']:.1f} | "
+        lines.append(f"| {r['element']} | {r['elements']} | {r['boundary_segments']} | {r['h']:g} | {r['steps']} | {r['seconds']:.1f} | "
                      f"{100 * r['err_phi']:.2f} % | {100 * r['err_P']:.1f} % | {r['status']} |")
     lines += ["", f"Whole benchmark: {total:.0f} s (`python benchmarks/single_particle_cost.py "
               f"--elements {' '.join(map(str, a.elements))} --types {' '.join(a.types)} --time-steps "
               f"{' '.join(f'{h:g}' for h in a.time_steps)}"
-              + (f" --skip {' '.join(a.skip)}" if a.skip else "") + "`)."]
-    (RESULTS / "single_particle_cost.md").write_text("\n".join(lines) + "\n")
+              + (f" --skip {' '.join(a.skip)}" if a.skip else "") + (f" --graded {' '.join(a.graded)}" if a.graded else "")
+              + (f" --output {a.output}" if a.output != "single_particle_cost" else "") + "`)."]
+    (RESULTS / f"{a.output}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
