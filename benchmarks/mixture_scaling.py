@@ -1,0 +1,103 @@
+"""Run time and memory of one mixture run against the number of disks N.
+
+For each N: the mixture study's pre stage (jamming of N rigid disks, then a fraction κ made soft,
+T3 × 92 per soft disk) into WORKDIR/n<N>/, then its one run with ``python -m compute --resume``
+as a child process: wall time and peak resident memory of that process (``os.wait4``), steps,
+Newton iterations and, per stage, φ and the step at which it ended. A run interrupted (the
+benchmark killed) resumes from its checkpoint when the benchmark is started again; the wall
+times of the sessions add up. Results are rewritten after every run:
+benchmarks/results/mixture_scaling.{md,json}.
+
+    python benchmarks/mixture_scaling.py --workdir /tmp/scaling --n 30 144 500 1500
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def prepare(work: Path, n: int, kappa: float, mu: float, p_max: float, stages: int) -> Path:
+    """The scene of the run (the study's pre stage, once)."""
+    study = work / f"n{n}"
+    if not (study / "study.json").is_file():
+        subprocess.run([sys.executable, "-m", "studies.mixture_compaction.pre", "--workdir", str(study), "--n", str(n),
+                        "--kappa", str(kappa), "--mu", str(mu), "--p-min", "1e-3", "--p-max", str(p_max),
+                        "--stages", str(stages)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    run = json.loads((study / "study.json").read_text())["runs"][0]
+    return study / run["scene"], study / run["out"]
+
+
+def run(scene: Path, out: Path) -> dict:
+    """Run (or resume) the scene in a child process: wall seconds, peak RSS in MiB, exit code."""
+    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    t0 = time.perf_counter()
+    with open(out.parent / "scaling.log", "a") as log:
+        proc = subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out), "--resume"],
+                                cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+        _, status, usage = os.wait4(proc.pid, 0)
+    return {"seconds": time.perf_counter() - t0, "peak_mib": usage.ru_maxrss / 1024.0,
+            "exit": os.waitstatus_to_exitcode(status)}
+
+
+def describe(out: Path) -> dict:
+    """Steps, Newton iterations and the stages of a finished (or partial) run, from its files."""
+    history = list(csv.DictReader(open(out / "history.csv")))
+    frames = [r for r in csv.DictReader(open(out / "frames.csv")) if r["equilibrated"] == "1"]
+    return {"steps": len(history), "newton_iterations": sum(int(r["newton_iterations"]) for r in history),
+            "status": next((m.lower() for m in ("COMPLETE", "INCOMPLETE", "FAILED") if (out / m).is_file()), "partial"),
+            "stages": [{"P": float(r["pressure_applied"]), "step": int(r["step"])} for r in frames]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--workdir", required=True)
+    ap.add_argument("--n", type=int, nargs="+", default=[30, 144, 500, 1500])
+    ap.add_argument("--kappa", type=float, default=1.0)
+    ap.add_argument("--mu", type=float, default=0.2)
+    ap.add_argument("--p-max", type=float, default=1.0)
+    ap.add_argument("--stages", type=int, default=7)
+    a = ap.parse_args()
+    work = Path(a.workdir)
+    RESULTS.mkdir(exist_ok=True)
+    record_file = RESULTS / "mixture_scaling.json"
+    record = json.loads(record_file.read_text()) if record_file.is_file() else {}
+    for n in a.n:
+        scene, out = prepare(work, n, a.kappa, a.mu, a.p_max, a.stages)
+        entry = record.setdefault(str(n), {"sessions": []})
+        if not (out / "COMPLETE").is_file() and not (out / "INCOMPLETE").is_file():
+            entry["sessions"].append(run(scene, out))
+        entry.update(describe(out), kappa=a.kappa, mu=a.mu, seconds=sum(s["seconds"] for s in entry["sessions"]),
+                     peak_mib=max((s["peak_mib"] for s in entry["sessions"]), default=float("nan")))
+        record_file.write_text(json.dumps(record, indent=1) + "\n")
+        print(f"N = {n}: {entry['status']}, {entry['steps']} steps, {entry['seconds']:.0f} s, "
+              f"{entry['peak_mib']:.0f} MiB", flush=True)
+        _markdown(record, a)
+
+
+def _markdown(record: dict, a) -> None:
+    lines = [f"# One mixture run against N (κ = {a.kappa:g}, μ = {a.mu:g}, T3 × 92, P/E = 1e-3 … {a.p_max:g} in "
+             f"{a.stages} stages, one thread)", "",
+             "`python benchmarks/mixture_scaling.py --workdir W --n " + " ".join(record) + "`: the compute stage as "
+             "one child process (`python -m compute --resume`), its wall time summed over sessions and its peak "
+             "resident memory; pre (jamming) not counted.", "",
+             "| N | status | steps | Newton iterations | wall time (s) | s/step | peak memory (MiB) | stage ends (step) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for n, e in sorted(record.items(), key=lambda kv: int(kv[0])):
+        ends = ", ".join(str(s["step"]) for s in e["stages"])
+        lines.append(f"| {n} | {e['status']} | {e['steps']} | {e['newton_iterations']} | {e['seconds']:.0f} | "
+                     f"{e['seconds'] / max(e['steps'], 1):.3f} | {e['peak_mib']:.0f} | {ends} |")
+    (RESULTS / "mixture_scaling.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
