@@ -19,7 +19,10 @@ from compute import schema
 from compute.__main__ import main
 from tests.deformable import scenes
 
-SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+# derandomized: the same 120 cases on every run (CI stays reproducible); explore further by hand with
+# e.g. max_examples=3000 and --hypothesis-seed (3 x 3000 cases passed when this test was written)
+SETTINGS = settings(max_examples=120, deadline=None, derandomize=True,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
 @pytest.fixture(scope="module")
