@@ -108,11 +108,9 @@ class RunProgress:
             self._steps0 = step - 1
         elapsed = now - self._t0
         per_step = elapsed / max(step - self._steps0, 1)
-        left = self.n_stages - stage
-        eta = sum(self._stage_times) / len(self._stage_times) * left if self._stage_times else None
         self.record = {"status": "running", "stage": stage, "stages": self.n_stages, "pressure": pressure,
                        "phi": phi, "step": step, "stage_steps": stage_steps, "seconds_per_step": per_step,
-                       "elapsed": elapsed, "eta": eta}
+                       "elapsed": elapsed, "eta": self._eta(stage)}
         self.display.update(stage, self.text())
         if now - self._written >= self.interval:
             self._write()
@@ -124,7 +122,7 @@ class RunProgress:
         self._stage_t0 = now
         if self.record:
             self.record["stage"] += 1
-            self.record["eta"] = sum(self._stage_times) / len(self._stage_times) * (self.n_stages - self.record["stage"])
+            self.record["eta"] = self._eta(self.record["stage"])
             self.display.update(self.record["stage"], self.text())
         self._write()
 
@@ -135,6 +133,12 @@ class RunProgress:
             self.display.mark(self.text())
         self._write()
         self.display.close()
+
+    def _eta(self, stage: int) -> float | None:
+        """Seconds left: the mean time of the finished stages times the stages from ``stage`` on."""
+        if not self._stage_times:
+            return None
+        return sum(self._stage_times) / len(self._stage_times) * (self.n_stages - stage)
 
     def text(self) -> str:
         r = self.record

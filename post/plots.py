@@ -178,53 +178,50 @@ def _by_mu(result: Compaction):
     return groups, mus, kappas, {k: f"C{i}" for i, k in enumerate(kappas)}
 
 
-def figure_compaction(result: Compaction):
-    """Fig. 2: φ(P/E) per μ, a colour per κ, with Eq. 5 (solid) and Platzer (dotted)."""
+def _panels_per_mu(result: Compaction, title: str, key: str, draw) -> object:
+    """A figure with one panel per μ; ``draw(ax, group, label, colour)`` draws each (κ, μ) group
+    in its panel, a colour per κ; ``key`` explains the lines."""
     groups, mus, kappas, colour = _by_mu(result)
     fig, axes = new_figure(1, max(1, len(mus)), size=(5.5, 4.5))
-    for j, mu in enumerate(mus):
-        ax = axes[0, j]
+    for ax, mu in zip(axes[0], mus):
         for kappa in kappas:
-            g = groups.get((kappa, mu))
-            if g is not None:
-                laws = [("", f, style) for f, style in ((g.eq5, "-"), (g.platzer, ":")) if f is not None]
-                plot_compaction(ax, g.P, g.phi, rf"$\kappa$ = {kappa:g}", laws, colour[kappa])
-        ax.set_title(rf"Fig. 2, $\mu$ = {mu:g}")
+            if (kappa, mu) in groups:
+                draw(ax, groups[(kappa, mu)], rf"$\kappa$ = {kappa:g}", colour[kappa])
+        ax.set_title(rf"{title}, $\mu$ = {mu:g}")
         ax.legend(fontsize=8)
-        ax.set_xscale("log")
-        ax.text(0.02, 0.98, "markers: simulation\nsolid: Eq. 5 (fitted $\\phi_{max}$)\ndotted: Platzer et al.",
-                transform=ax.transAxes, va="top", fontsize=7)
+        ax.text(0.02, 0.98, key, transform=ax.transAxes, va="top", fontsize=7)
     return fig
+
+
+def figure_compaction(result: Compaction):
+    """Fig. 2: φ(P/E) per μ, a colour per κ, with Eq. 5 (solid) and Platzer (dotted)."""
+    def draw(ax, g, label, colour):
+        laws = [("", f, style) for f, style in ((g.eq5, "-"), (g.platzer, ":")) if f is not None]
+        plot_compaction(ax, g.P, g.phi, label, laws, colour)
+        ax.set_xscale("log")
+
+    return _panels_per_mu(result, "Fig. 2", "markers: simulation\nsolid: Eq. 5 (fitted $\\phi_{max}$)\n"
+                          "dotted: Platzer et al.", draw)
 
 
 def figure_bulk_modulus(result: Compaction):
     """Fig. 3: K/E(φ) per μ, a colour per κ, with Eq. 3 (solid) and the Platzer modulus (dotted)."""
     from post import models
 
-    groups, mus, kappas, colour = _by_mu(result)
-    fig, axes = new_figure(1, max(1, len(mus)), size=(5.5, 4.5))
-    for j, mu in enumerate(mus):
-        ax = axes[0, j]
-        for kappa in kappas:
-            g = groups.get((kappa, mu))
-            if g is None:
-                continue
-            finite = np.isfinite(g.K) & (g.K > 0)
-            lines = []
-            if finite.any():
-                order = np.argsort(g.phi[finite])
-                lines.append(("", g.phi[finite][order], g.eq3[finite][order], "-"))
-                if g.platzer is not None:
-                    x = np.linspace(g.phi.min(), g.phi.max(), 100)
-                    lines.append(("", x, models.log_compaction_modulus(x, g.platzer.params["P0"],
-                                                                       g.platzer.params["phi_max"]), ":"))
-            plot_bulk_modulus(ax, g.phi, g.K, rf"$\kappa$ = {kappa:g}", lines, colour[kappa])
-        ax.set_title(rf"Fig. 3, $\mu$ = {mu:g}")
-        ax.legend(fontsize=8)
-        ax.text(0.02, 0.98, "markers: K = $\\phi$ dP/d$\\phi$\nsolid: Eq. 3, Z$\\phi$K$_p$/2$\\pi$ "
-                "($\\phi_{max}(\\kappa)$ of Eq. 5)\ndotted: Platzer modulus", transform=ax.transAxes, va="top",
-                fontsize=7)
-    return fig
+    def draw(ax, g, label, colour):
+        finite = np.isfinite(g.K) & (g.K > 0)
+        lines = []
+        if finite.any():
+            order = np.argsort(g.phi[finite])
+            lines.append(("", g.phi[finite][order], g.eq3[finite][order], "-"))
+            if g.platzer is not None:
+                x = np.linspace(g.phi.min(), g.phi.max(), 100)
+                lines.append(("", x, models.log_compaction_modulus(x, g.platzer.params["P0"],
+                                                                   g.platzer.params["phi_max"]), ":"))
+        plot_bulk_modulus(ax, g.phi, g.K, label, lines, colour)
+
+    return _panels_per_mu(result, "Fig. 3", "markers: K = $\\phi$ dP/d$\\phi$\nsolid: Eq. 3, "
+                          "Z$\\phi$K$_p$/2$\\pi$ ($\\phi_{max}(\\kappa)$ of Eq. 5)\ndotted: Platzer modulus", draw)
 
 
 def figure_coordination(result: Compaction, reference: tuple[float, float] | None = None):
