@@ -76,7 +76,7 @@ class Solver:
     skin: float
     newton_tolerance: float
     newton_max_iterations: int
-    contact: str  # contact solver: "auto", "nlgs" or "block" (compute.solvers.for_scene)
+    contact: str  # contact solver: "auto", "nlgs", "block" or "nlgs_block" (compute.solvers.for_scene)
 
 
 @dataclass(frozen=True)

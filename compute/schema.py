@@ -143,8 +143,8 @@ SOLVER = (
     Key("skin", "float", "broad-phase skin, in mean diameters", low=0.0, high=10.0, open_low=True),
     _tolerance("newton_tolerance", "Newton loop: position correction, in mean diameters", low=1e-15, default=1e-8),
     Key("newton_max_iterations", "int", "Newton iterations per step attempt", low=1, high=1000, default=20),
-    Key("contact", "str", "contact solver (auto: block for one soft body alone, else nlgs)",
-        options=("auto", "nlgs", "block"), default="auto"),
+    Key("contact", "str", "contact solver (auto: nlgs without soft bodies, block for one soft body alone, "
+        "else nlgs_block)", options=("auto", "nlgs", "block", "nlgs_block"), default="auto"),
 )
 
 OUTPUT = (

@@ -2,21 +2,25 @@
 end-of-step velocities, with the impulses written into ``problem.impulse``.
 
 The interface is one method, ``solve(problem) -> SolveReport``; a solver knows nothing of body
-kinds. Two implementations, chosen by the scene's ``solver.contact`` (:func:`for_scene`):
+kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
 
 - ``"nlgs"``: :class:`~compute.solvers.nlgs.NLGS`, nonlinear Gauss–Seidel with the exact local 2D
   Signorini–Coulomb solution per contact;
 - ``"block"``: :class:`~compute.solvers.block_gs.BlockGS`, the contacts of each soft body solved
   exactly together (semismooth Newton), Gauss–Seidel over bodies and single contacts;
-- ``"auto"`` (default): ``block`` for a scene whose only moving bodies are one soft body and the
-  walls, ``nlgs`` otherwise. Measured (single particle T6 x 92, 16 stages: the contact solve
-  takes 0.20 s instead of 0.56 s; the point Gauss–Seidel contracts by only 0.96–0.985 per sweep
-  there, the body's contacts being coupled through its compliance, while the block is one
-  Newton solve). In a 144-disk mixture (κ = 0.5, μ = 0.2, T3 x 92) the blocks do not help:
-  from the same cold start at P/E = 1 block Gauss–Seidel needs 8016 sweeps to 1e-6 against
-  NLGS's 8136 (the slow coupling is between bodies, through the contact network), at 1.5–4
-  times the cost per sweep; at P/E = 0.01, 49 against 53 sweeps to 1e-4. Without soft bodies
-  every block is one contact and the two are the same iteration.
+- ``"nlgs_block"``: :class:`~compute.solvers.nlgs_block.NLGSThenBlock`, NLGS until it stalls, then
+  block Gauss–Seidel;
+- ``"auto"`` (default): ``nlgs`` without soft bodies (every block would be one contact: the same
+  iteration, dearer); ``block`` for a scene whose only moving bodies are one soft body and the
+  walls; ``nlgs_block`` for soft bodies among other bodies. Measured: single particle T6 x 92,
+  16 stages: the contact solve takes 0.20 s with ``block`` instead of 0.56 s with ``nlgs`` (the
+  point Gauss–Seidel contracts by only 0.96–0.985 per sweep there, the body's contacts being
+  coupled through its compliance, while the block is one Newton solve). In soft mixtures the
+  slow coupling is between bodies, through the contact network: from the same cold start at
+  P/E = 1 (144 disks, κ = 0.5, μ = 0.2, T3 x 92) ``block`` needs 8016 sweeps to 1e-6 against
+  ``nlgs``'s 8136, at 1.5–4 times the cost per sweep; but while a 500-disk mixture compacts at
+  P/E = 0.32, ``nlgs`` stalls at an error of 1e-3 for thousands of sweeps where ``block`` converges
+  in 2–400 (:mod:`compute.solvers.nlgs_block`), hence ``nlgs_block``.
 
 Both stop on the natural-map error of :mod:`compute.solvers.residual`.
 """
@@ -43,10 +47,13 @@ def for_scene(settings, n_soft: int, n_rigid: int):
     with ``n_soft`` soft bodies and ``n_rigid`` movable rigid disks."""
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.nlgs import NLGS
+    from compute.solvers.nlgs_block import NLGSThenBlock
 
     kind = settings.contact
     if kind == "auto":
-        kind = "block" if n_soft == 1 and n_rigid == 0 else "nlgs"
+        kind = "nlgs" if n_soft == 0 else "block" if n_rigid == 0 and n_soft == 1 else "nlgs_block"
     if kind == "block":
         return BlockGS(settings.nlgs_tolerance, settings.nlgs_max_sweeps)
+    if kind == "nlgs_block":
+        return NLGSThenBlock(settings.nlgs_tolerance, settings.nlgs_max_sweeps, settings.relaxation)
     return NLGS(settings.nlgs_tolerance, settings.nlgs_max_sweeps, settings.relaxation)

@@ -13,6 +13,14 @@ Stopping: the true error of the solution, the natural-map residual ‖f‖ / ‖
 no update) only after sweeps whose relative change sqrt(Σ|Δr|²) / sqrt(Σ|r|²) (LMGC90's quadratic
 norm) is already below ``tol``: that change understates the error by about 1 / (1 - ρ) where the
 sweeps contract by ρ close to 1, so alone it stops too early.
+
+Stall detection (``stall_window`` > 0, for a caller with a fallback): every ``stall_window``
+sweeps the natural-map error is evaluated, and the solve stops early, unconverged, when it is not
+below the smallest error of the earlier checks (an iteration that oscillates; one that converges
+slowly goes on). Measured where this happens: in a
+500-disk soft mixture compacting at P/E = 0.32, frictional point Gauss–Seidel oscillates at an
+error of 1e-3–1e-2 for thousands of sweeps (contacts of nearly singular soft corners, W_tt ≈
+100 W_nn, with strong n–t coupling), while without friction it converges.
 """
 
 from __future__ import annotations
@@ -31,11 +39,13 @@ from compute.solvers.residual import natural_map_error
 @dataclass(frozen=True)
 class NLGS:
     """Nonlinear Gauss–Seidel: stops when the natural-map error of the impulses is below
-    ``tolerance`` (module docstring) or after ``max_sweeps``; ``relaxation`` in (0, 1]."""
+    ``tolerance`` (module docstring), after ``max_sweeps``, or, with ``stall_window`` > 0, when it
+    stalls; ``relaxation`` in (0, 1]."""
 
     tolerance: float
     max_sweeps: int
     relaxation: float = 1.0
+    stall_window: int = 0
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
@@ -44,7 +54,7 @@ class NLGS:
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
         sweeps, residual = nlgs_solve(problem.dof, problem.hn, problem.ht, problem.W, problem.gap_term, problem.mu,
                                       problem.impulse, v, *carr, self.tolerance, self.max_sweeps,
-                                      self.relaxation)
+                                      self.relaxation, self.stall_window)
         return SolveReport(v, sweeps, residual)
 
 
@@ -74,14 +84,15 @@ def local_signorini_coulomb(wnn, wnt, wtn, wtt, bn, bt, mu):
 
 @numba.njit(cache=True)
 def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, dofs, offset, values,
-               tol, max_sweeps, relax):
+               tol, max_sweeps, relax, stall_window):
     """Solve the contact problem in place.
 
     dof, hn, ht (nc, m): rows of H; W (nc, 2, 2); gap_term (nc,) = g̃ / (h θ); mu (nc,);
     r (nc, 2) impulses (warm start in, solution out); v (n_dofs,) velocities that already
     include the warm-start impulses (v = v_free + M̂⁻¹ H r). Returns (sweeps, natural-map error
-    at the stop).
+    at the stop); stalled (module docstring) if the error is above tol before max_sweeps.
     """
+    best = np.inf  # smallest error of the stall checks
     for sweep in range(1, max_sweeps + 1):
         num = 0.0
         den = 0.0
@@ -105,6 +116,11 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
             error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
             if error <= tol:
                 return sweep, error
+        if stall_window and sweep % stall_window == 0 and sweep < max_sweeps:
+            error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+            if error >= best:
+                return sweep, error
+            best = error
     return max_sweeps, natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
 
 
