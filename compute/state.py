@@ -18,7 +18,9 @@ class State:
     ``q``, ``v`` (n_dofs,); ``stage`` index into the loading program; ``stage_steps`` steps
     done in the current stage; ``phi_check`` φ at the last equilibrium check; the stage's load
     ramp (:mod:`compute.stepping.load_control`): ``load_fraction`` λ applied, ``load_increment``
-    Δλ of the next step, ``load_accepted`` steps accepted at that increment; ``frame`` the
+    Δλ of the next step, ``load_accepted`` steps accepted at that increment; the step control's
+    (:mod:`compute.stepping.control`) ``cut_depth`` (a step starts as 2**cut_depth sub-steps) and
+    ``cut_accepted`` steps accepted at that depth; ``frame`` the
     number of frames written; the contact memory (Verlet list and last impulses) is kept in
     ``pairs``/``impulses`` per contact family and ``q_detect`` (positions at detection).
     """
@@ -34,6 +36,8 @@ class State:
     load_fraction: float = 0.0
     load_increment: float = 1.0
     load_accepted: int = 0
+    cut_depth: int = 0
+    cut_accepted: int = 0
     q_detect: np.ndarray | None = None
     pairs: dict[str, np.ndarray] = field(default_factory=dict)
     impulses: dict[str, np.ndarray] = field(default_factory=dict)
@@ -41,7 +45,8 @@ class State:
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"q": self.q, "v": self.v,
                "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.phi_check, self.frame]),
-               "load": np.array([self.load_fraction, self.load_increment, self.load_accepted])}
+               "load": np.array([self.load_fraction, self.load_increment, self.load_accepted]),
+               "cuts": np.array([self.cut_depth, self.cut_accepted])}
         if self.q_detect is not None:
             out["q_detect"] = self.q_detect
         for k, a in self.pairs.items():
@@ -55,9 +60,12 @@ class State:
         families = [k[len("pairs_"):] for k in a if k.startswith("pairs_")]
         # checkpoints written before load ramps applied each stage's load at once: λ = 1
         fraction, increment, accepted = a["load"] if "load" in a else (1.0, 1.0, 0)
+        # and before the step control kept the depth of its cuts: every step started whole
+        depth, depth_accepted = a["cuts"] if "cuts" in a else (0, 0)
         return cls(q=a["q"].copy(), v=a["v"].copy(), time=float(t), step=int(step), stage=int(stage),
                    stage_steps=int(stage_steps), phi_check=float(phi_check), frame=int(frame),
                    load_fraction=float(fraction), load_increment=float(increment), load_accepted=int(accepted),
+                   cut_depth=int(depth), cut_accepted=int(depth_accepted),
                    q_detect=a["q_detect"].copy() if "q_detect" in a else None,
                    pairs={k: a["pairs_" + k].copy() for k in families},
                    impulses={k: a["impulses_" + k].copy() for k in families})
