@@ -55,7 +55,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
         except StepFailure as exc:
             if depth >= max_cuts:
                 restore(state, snap)
-                cut = f"; the step was cut {cuts} times (h = {h:.4g} -> {h / 2**depth:.4g}) without success" if cuts else ""
+                cut = f"; the step failed down to sub-steps h / {2**depth} = {h / 2**depth:.4g} (h = {h:.4g})" if depth else ""
                 raise SimulationError(f"step {s0 + 1}: {exc}{cut}") from None
             restore(state, before)
             stats["cuts"] += 1
