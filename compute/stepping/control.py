@@ -11,7 +11,10 @@ last one ended with, and the depth goes down by one after ``GROW_AFTER`` steps t
 new cut. Why: in a compacting soft mixture the steps that fail whole come
 in runs (a 500-disk mixture at P/E = 0.32: every few steps a whole step fails after its 25
 Newton iterations, some 50 s of a run of 2–10 s steps, while its halves converge); starting
-again from the whole step each time pays that failure again.
+again from the whole step each time pays that failure again. A failure costs as much as 10–20
+good steps, hence the slow growth; measured on 30 steps of that mixture: 965 s with every step
+starting whole, 284 s growing after 4 steps, 140 s after 16 (benchmarks/results/
+soft_mixture_steps.md).
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import copy
 
 from compute.errors import SimulationError, StepFailure
 
-GROW_AFTER = 4  # steps without a new cut before the depth goes down by one
+GROW_AFTER = 16  # steps without a new cut before the depth goes down by one
 
 
 def snapshot(state):

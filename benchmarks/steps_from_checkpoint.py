@@ -1,0 +1,92 @@
+"""Cost of the next steps of a run from its checkpoint, for comparing two versions of compute.
+
+Copies RUN/out (frames left out) to a temporary folder, resumes the run from its checkpoint with
+the code of the current directory's checkout (so that a git worktree of another commit can be
+measured with this same script), and takes --steps steps of the loading program, one thread.
+Prints one JSON line: wall seconds, steps, Newton iterations, cuts, load halvings, contact
+sweeps, φ after every step; --json appends it to a file.
+
+    python -m studies.mixture_compaction.pre --workdir W --n 500 --kappa 1 --mu 0.2 --stages 7
+    python -m compute W/runs/k1_mu0.2_s1/scene --out W/runs/k1_mu0.2_s1/out   # stop it in stage 5
+    python benchmarks/steps_from_checkpoint.py --run W/runs/k1_mu0.2_s1 --steps 40 --label after
+    (cd WORKTREE && python /path/to/benchmarks/steps_from_checkpoint.py --run ... --label before)
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", type=Path, required=True, help="a run folder with scene/ and out/ (with a checkpoint)")
+    ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--label", default="")
+    ap.add_argument("--contact", help="contact solver instead of the scene's (solver.contact)")
+    ap.add_argument("--json", type=Path, help="append the result line to this file")
+    a = ap.parse_args()
+    sys.path.insert(0, os.getcwd())  # the checkout being measured
+    from compute.progress import RunProgress
+    from compute.run import Run
+    from compute.stepping import load_control
+
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        shutil.copytree(a.run.resolve() / "out", out, ignore=shutil.ignore_patterns("frames", ".lock"))
+        (out / "frames").mkdir()
+        run = Run(a.run.resolve() / "scene", out, resume=True, log=lambda msg: None)
+        if a.contact:
+            from dataclasses import replace
+
+            from compute import solvers
+
+            model = run.model
+            run.stepper.solver = solvers.for_scene(replace(run.scene.solver, contact=a.contact),
+                                                   sum(len(g) for g in model.soft),
+                                                   int((~model.rigid.fixed).sum()))
+        run.progress = RunProgress(out, len(run.scene.loading.pressures), None)
+        st, pressures = run.state, run.scene.loading.pressures
+        previous = pressures[st.stage - 1] if st.stage else 0.0
+        first = st.step
+        result = {"label": a.label, "commit": commit, "contact": type(run.stepper.solver).__name__, "from_step": first, "stage": st.stage, "newton_iterations": 0,
+                  "cuts": 0, "load_halvings": 0, "sweeps": 0, "phi": [], "step_seconds": []}
+        t0 = time.perf_counter()
+        try:
+            for _ in range(a.steps):
+                t = time.perf_counter()
+                rep, _, halvings = load_control.controlled_step(run.stepper, st, previous, pressures[st.stage],
+                                                                lambda msg: None)
+                result["step_seconds"].append(round(time.perf_counter() - t, 3))
+                result["newton_iterations"] += rep.newton_iterations
+                result["cuts"] += rep.cuts
+                result["load_halvings"] += halvings
+                result["sweeps"] += rep.sweeps
+                result["phi"].append(run.model.phi(st.q))
+            result["end"] = "ok"
+        except Exception as exc:  # a failed step ends the measurement; it is part of the result
+            result["end"] = f"{type(exc).__name__}: {exc}"
+        result["seconds"] = round(time.perf_counter() - t0, 2)
+        result["steps"] = st.step - first
+        run.history.close()
+    line = json.dumps(result)
+    print(line)
+    if a.json:
+        with open(a.json, "a") as f:
+            f.write(line + "\n")
+
+
+if __name__ == "__main__":
+    main()
