@@ -45,15 +45,17 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     """Advance ``state`` by h with ``attempt(state, h) -> StepReport`` (which raises StepFailure)
     in sub-steps h / 2**d, d from ``state.cut_depth``, one level deeper after each failing
     attempt (the rest of the step goes on at that depth). Raises SimulationError (state
-    restored) when an attempt fails at depth ``max_cuts``."""
+    restored) when an attempt fails at depth ``max_cuts``. The report is the last sub-step's, with
+    ``newton_iterations`` of all the step's attempts (counted by the attempts in ``stats``)."""
     t0, s0 = state.time, state.step
+    iterations0 = stats["newton_iterations"]
     snap = snapshot(state)
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts = 2**max_cuts, 0, None, 0  # progress in units of h / 2**max_cuts
     while done < units:
         before = snapshot(state)
         try:
-            rep = _merged(rep, attempt(state, h / 2**depth))
+            rep = attempt(state, h / 2**depth)
             done += units >> depth
         except StepFailure as exc:
             if depth >= max_cuts:
@@ -65,6 +67,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             cuts += 1
             depth += 1
     rep.cuts = cuts
+    rep.newton_iterations = stats["newton_iterations"] - iterations0
     state.cut_accepted = 0 if depth > depth0 else state.cut_accepted + 1
     state.cut_depth = depth
     if depth and state.cut_accepted >= GROW_AFTER:
@@ -76,10 +79,3 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
         rep.contacts.impulse *= h / rep.h
     return rep
 
-
-def _merged(first, second):
-    """The report of two consecutive sub-steps: the second's, with the work of both."""
-    if first is not None:
-        second.sweeps += first.sweeps
-        second.newton_iterations += first.newton_iterations
-    return second

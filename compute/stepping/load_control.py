@@ -37,8 +37,10 @@ def applied(previous: float, target: float, fraction: float) -> float:
 
 def controlled_step(stepper, state, previous: float, target: float, log):
     """One accepted step of the stage from ``previous`` to ``target`` (module docstring); returns
-    (StepReport, applied pressure, number of increment halvings this step needed)."""
+    (StepReport, applied pressure, number of increment halvings this step needed). The report's
+    Newton iterations include those of the failed increments."""
     halvings = 0
+    iterations0 = stepper.stats["newton_iterations"]
     while True:
         remaining = 1.0 - state.load_fraction
         dl = min(state.load_increment, remaining)
@@ -59,6 +61,8 @@ def controlled_step(stepper, state, previous: float, target: float, log):
             log(f"stage {state.stage}: step {state.step + 1} failed at P = {pressure:.6g}; load increment "
                 f"halved to {state.load_increment:.3g} of the jump ({exc})")
             continue
+        if halvings:
+            rep.newton_iterations = stepper.stats["newton_iterations"] - iterations0
         state.load_fraction = fraction
         state.load_accepted += 1
         if state.load_accepted >= GROW_AFTER and state.load_increment < 1.0:

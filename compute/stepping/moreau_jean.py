@@ -103,7 +103,6 @@ class Stepper:
         if not np.all(np.isfinite(v)):
             raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")
-        self._counts["newton_iterations"] += iterations
         state.q += h * ((1.0 - th) * state.v + th * v)
         state.v = v
         state.time += h

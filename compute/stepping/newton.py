@@ -57,6 +57,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
     err_prev = np.inf
     stamp = None  # the factorisations the compliance blocks were made with
     for it in range(1, max_iterations + 1):
+        stats["newton_iterations"] += 1  # every iteration, those of failing attempts too
         with TIMES("free velocity"):
             for g in model.groups:
                 g.free_velocity(v, v_free)

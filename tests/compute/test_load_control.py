@@ -3,6 +3,7 @@ whose steps fail above a given load increment, and the run's honest end (compute
 a stage ended by max_steps_per_stage, or contact solves above their tolerance, end INCOMPLETE."""
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,14 +22,16 @@ class ScriptedStepper:
 
     def __init__(self, limit: float):
         self.limit, self.asked, self.p = limit, [], 0.0
+        self.stats = {"newton_iterations": 0}
 
     def step(self, state, pressure):
         self.asked.append(pressure)
+        self.stats["newton_iterations"] += 3  # every attempt works, failing ones too
         if pressure - self.p > self.limit + 1e-15:
             raise SimulationError(f"step {state.step + 1}: body 7: Newton did not converge")
         self.p = pressure
         state.step += 1
-        return "report"
+        return SimpleNamespace(newton_iterations=3)
 
 
 def fresh_state():
@@ -38,11 +41,13 @@ def fresh_state():
 
 
 def ramp(stepper, state, previous, target, max_steps=100):
-    applied, halvings = [], 0
+    applied, halvings, reports = [], 0, []
     while state.load_fraction < 1.0 and len(applied) < max_steps:
-        _, p, k = load_control.controlled_step(stepper, state, previous, target, lambda m: None)
+        rep, p, k = load_control.controlled_step(stepper, state, previous, target, lambda m: None)
         applied.append(p)
         halvings += k
+        reports.append(rep)
+    ramp.reports = reports
     return applied, halvings
 
 
@@ -63,6 +68,8 @@ def test_failing_jump_is_halved_then_grows_back():
     assert applied[:2] == pytest.approx([1 / 16, 2 / 16])
     assert halvings >= 4
     assert state.load_fraction == 1.0
+    first = ramp.reports[0]  # four failed increments, then the accepted one: all their work
+    assert first.newton_iterations == 3 * 5
 
 
 def test_a_diagnosis_at_the_floor():

@@ -17,9 +17,11 @@ class ScriptedAttempt:
 
     def __init__(self, largest):
         self.largest, self.asked = largest, []
+        self.stats = {"cuts": 0, "newton_iterations": 0}
 
     def __call__(self, state, h):
         self.asked.append(h)
+        self.stats["newton_iterations"] += 2  # as the Newton loop counts: failing attempts too
         state.time += h
         state.step += 1
         if h > self.largest(self.step_index) + 1e-15:
@@ -33,7 +35,7 @@ def take(attempt, state, steps, h=1.0, max_cuts=4):
     for k in range(steps):
         attempt.step_index = state.step + 1
         attempt.asked.append("|")
-        reports.append(control.step_with_cuts(attempt, state, h, max_cuts, {"cuts": 0}))
+        reports.append(control.step_with_cuts(attempt, state, h, max_cuts, attempt.stats))
     return reports
 
 
@@ -53,7 +55,7 @@ def test_cut_depth_is_kept_then_grows_back():
     assert all(s.split() == ["1.0"] for s in steps[2 * G + 1:])  # then whole steps again
     assert len(steps) == n and len(steps[2 * G + 1:]) == 3
     assert [r.cuts for r in reports] == [2] + [0] * (n - 1)  # a kept depth is not a cut
-    assert reports[0].newton_iterations == 2 * 4  # the work of the accepted sub-steps
+    assert reports[0].newton_iterations == 2 * 6  # all attempts, failed ones too
     assert state.step == n and state.time == pytest.approx(n)
 
 
