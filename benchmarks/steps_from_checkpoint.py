@@ -53,16 +53,14 @@ def main() -> None:
 
             from compute import solvers
 
-            model = run.model
-            run.stepper.solver = solvers.for_scene(replace(run.scene.solver, contact=a.contact),
-                                                   sum(len(g) for g in model.soft),
-                                                   int((~model.rigid.fixed).sum()))
+            run.stepper.solver = solvers.for_model(replace(run.scene.solver, contact=a.contact), run.model)
         run.progress = RunProgress(out, len(run.scene.loading.pressures), None)
         st, pressures = run.state, run.scene.loading.pressures
         previous = pressures[st.stage - 1] if st.stage else 0.0
         first = st.step
-        result = {"label": a.label, "commit": commit, "contact": type(run.stepper.solver).__name__, "from_step": first, "stage": st.stage, "newton_iterations": 0,
-                  "cuts": 0, "load_halvings": 0, "sweeps": 0, "phi": [], "step_seconds": []}
+        result = {"label": a.label, "commit": commit, "contact": type(run.stepper.solver).__name__,
+                  "from_step": first, "stage": st.stage, "newton_iterations": 0, "cuts": 0, "load_halvings": 0,
+                  "sweeps": 0, "phi": [], "step_seconds": []}
         t0 = time.perf_counter()
         try:
             for _ in range(a.steps):

@@ -42,6 +42,11 @@ class SolveReport:
     residual: float
 
 
+def for_model(settings, model):
+    """The contact solver of ``settings`` (a scene's ``[solver]``) for a :class:`compute.model.Model`."""
+    return for_scene(settings, sum(len(g) for g in model.soft), int(np.count_nonzero(~model.rigid.fixed)))
+
+
 def for_scene(settings, n_soft: int, n_rigid: int):
     """The contact solver of a scene's ``[solver]`` settings (module docstring), for a scene
     with ``n_soft`` soft bodies and ``n_rigid`` movable rigid disks."""

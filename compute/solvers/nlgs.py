@@ -112,15 +112,15 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
             num += dn * dn + dt * dt
             den += rn * rn + rt * rt
         change = np.sqrt(num / den) if den > 0.0 else 0.0
-        if change <= tol:
+        stall_check = stall_window > 0 and sweep % stall_window == 0 and sweep < max_sweeps
+        if change <= tol or stall_check:
             error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
-            if error <= tol:
+            if change <= tol and error <= tol:
                 return sweep, error
-        if stall_window and sweep % stall_window == 0 and sweep < max_sweeps:
-            error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
-            if error >= best:
-                return sweep, error
-            best = error
+            if stall_check:
+                if error >= best:
+                    return sweep, error
+                best = error
     return max_sweeps, natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
 
 

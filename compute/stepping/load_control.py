@@ -61,8 +61,7 @@ def controlled_step(stepper, state, previous: float, target: float, log):
             log(f"stage {state.stage}: step {state.step + 1} failed at P = {pressure:.6g}; load increment "
                 f"halved to {state.load_increment:.3g} of the jump ({exc})")
             continue
-        if halvings:
-            rep.newton_iterations = stepper.stats["newton_iterations"] - iterations0
+        rep.newton_iterations = stepper.stats["newton_iterations"] - iterations0
         state.load_fraction = fraction
         state.load_accepted += 1
         if state.load_accepted >= GROW_AFTER and state.load_increment < 1.0:

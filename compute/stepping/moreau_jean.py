@@ -53,8 +53,7 @@ class Stepper:
         s = model.scene.solver
         self.model = model
         self.h, self.theta = s.time_step, s.theta
-        self.solver = solver or solvers.for_scene(s, sum(len(g) for g in model.soft),
-                                                  int(np.count_nonzero(~model.rigid.fixed)))
+        self.solver = solver or solvers.for_model(s, model)
         self.newton_tolerance = s.newton_tolerance * model.diameter
         self.newton_max_iterations = s.newton_max_iterations
         self.gravity = tuple(model.scene.loading.gravity)
