@@ -178,14 +178,19 @@ class SoftBodies:
         return start, dofs, values
 
     @sized_to_group
-    def recover(self, hr, v_free, v) -> None:
-        """v_b = v_free,b + M̂_b⁻¹ (H r)_b for every body with a contact impulse (in place in v)."""
+    def compliance_times(self, hr) -> np.ndarray:
+        """M̂_b⁻¹ (H r)_b (B, 2n) of every body (zeros for bodies without a contact impulse)."""
         rhs = hr[self.dofs].reshape(self.B, -1)
         touched = np.any(rhs != 0.0, axis=1)
+        return self.matrices.solve(rhs, touched) if touched.any() else np.zeros_like(rhs)
+
+    @sized_to_group
+    def recover(self, hr, v_free, v) -> None:
+        """v_b = v_free,b + M̂_b⁻¹ (H r)_b for every body with a contact impulse (in place in v)."""
+        touched = np.any(hr[self.dofs].reshape(self.B, -1) != 0.0, axis=1)
         if touched.any():
-            dv = self.matrices.solve(rhs, touched)
             vb = v[self.dofs].reshape(self.B, -1)
-            vb[touched] = v_free[self.dofs].reshape(self.B, -1)[touched] + dv[touched]
+            vb[touched] = v_free[self.dofs].reshape(self.B, -1)[touched] + self.compliance_times(hr)[touched]
 
     @sized_to_group
     def area_change(self, v, lo: float, hi: float):

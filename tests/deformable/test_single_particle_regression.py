@@ -3,7 +3,12 @@ P/E = 1e-3 to 1) through pre.py, compute (Run) and post.py, against stored curve
 studies/single_particle/refine.py (studies/single_particle/data/):
 
 - default_T6_92.csv, the same mesh and settings: phi_p within 2e-4 (the stages stop when phi
-  changes by less than 1e-5 over two steps; repeated runs agree to about 1e-5);
+  changes by less than 1e-5 over two steps; repeated runs agree to about 1e-5). Remade when the
+  Newton loop started dropping its Anderson history on a growing correction: the curve before
+  ended stages P/E = 0.16 and 0.25 early, at 0.9378 and 0.9711, where a 1e-8 stage criterion
+  takes the same code to 0.940386 and 0.964341 and the new loop stops at 0.940386 and 0.964479
+  with the default one; at P/E = 0.1 the two loops settle in two equilibria 7.5e-4 apart
+  (0.9113, 0.9105; the refined curve is at 0.9086);
 - reference_T6g.csv, the converged refinement (boundary-graded T6, 960 boundary segments, 8690
   elements; its first 12 stages, phi_p <= 0.95): phi_p within TOLERANCE. The refinement study
   justifies it: the default mesh lies 0.15-1.13 % from this curve, which moves by less than
