@@ -1,0 +1,104 @@
+"""Newton iterations per step of soft scenes, for comparing two versions of compute.
+
+Measures the checkout of the current directory (so that a git worktree of another commit can run
+this same script), one thread, one JSON line per case (--json appends them to a file):
+
+- ``single``: the single-particle study's scene (T6 x 92, 16 stages to P/E = 1) at the time
+  steps --single-h; the iteration counts of this scene jump by tens of percent with h (the
+  body's rigid rotation is unstable under the load and held by nothing), so several h are run;
+- ``three``: three soft T3 disks pressed by the walls with friction 0.3, contact tolerance 1e-3,
+  Newton tolerance 1e-9 (tests/deformable/test_newton_residual.py's scene), 8 steps at each
+  time step --three-h;
+- ``program``: a prepared scene folder (--program, e.g. the 144-disk mixture), its whole loading
+  program, the run ending where it ends (a failure is part of the result).
+
+    python benchmarks/newton_iterations.py --json after.jsonl [--program W/runs/k0.5_mu0.2_s1/scene]
+    (cd WORKTREE && python /path/to/benchmarks/newton_iterations.py --json before.jsonl ...)
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import io  # noqa: E402
+import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+
+def run_folder(scene: Path, out: Path) -> dict:
+    """Run a scene's loading program; counts, wall time, end status and final φ."""
+    from compute.errors import SimulationError
+    from compute.progress import Display
+    from compute.run import Run
+
+    t0 = time.perf_counter()
+    run = Run(scene, out, log=lambda m: None, display=Display(1, stream=io.StringIO()))
+    try:
+        state = run.execute()
+        end = "ok"
+    except SimulationError as exc:
+        state, end = run.state, f"failed at step {run.state.step + 1}: {str(exc)[:120]}"
+    s = run.stepper.stats
+    return {"steps": state.step, "newton_iterations": s["newton_iterations"], "cuts": s["cuts"],
+            "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6), "end": end}
+
+
+def three_disks(folder: Path, h: float, steps: int = 8) -> dict:
+    """The pressed three-disk scene at time step h: counts over ``steps`` steps."""
+    from tests.deformable import scenes
+
+    soft = [scenes.disk(30, "T3", centre=c, radius=1.0) for c in ((0.0, 0.0), (2.0, 0.0), (1.0, 1.73))]
+    params = scenes.parameters((-1.02, 3.02, -1.02, 2.75), element="T3", friction=0.3, time_step=h,
+                               newton_tolerance=1e-9, nlgs_tolerance=1e-3, pressures=(0.05,))
+    scenes.write(folder, params, soft=soft)
+    model, stepper, state = scenes.load(folder)
+    t0, end = time.perf_counter(), "ok"
+    try:
+        for _ in range(steps):
+            stepper.step(state, 0.05)
+    except Exception as exc:  # a failed step ends the case; it is part of the result
+        end = f"{type(exc).__name__}: {str(exc)[:120]}"
+    s = stepper.stats
+    return {"steps": state.step, "newton_iterations": s["newton_iterations"], "cuts": s["cuts"],
+            "seconds": round(time.perf_counter() - t0, 2), "end": end}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--single-h", type=float, nargs="*", default=[8.0, 9.0, 10.0, 11.0, 12.0])
+    ap.add_argument("--three-h", type=float, nargs="*", default=[0.5, 1.0, 2.0])
+    ap.add_argument("--program", type=Path, nargs="*", default=[], help="scene folders run through their program")
+    ap.add_argument("--label", default="")
+    ap.add_argument("--json", type=Path)
+    a = ap.parse_args()
+    sys.path.insert(0, os.getcwd())  # the checkout being measured
+    from pre.single_particle import write
+
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    lines = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        cases = [("single", h, lambda h=h: run_folder(write(tmp / f"single{h}", time_step=h), tmp / f"single{h}_out"))
+                 for h in a.single_h]
+        cases += [("three", h, lambda h=h: three_disks(tmp / f"three{h}", h)) for h in a.three_h]
+        cases += [("program", str(p), lambda p=p: run_folder(p.resolve(), tmp / f"program{k}"))
+                  for k, p in enumerate(a.program)]
+        for name, parameter, case in cases:
+            result = {"label": a.label, "commit": commit, "case": name, "parameter": parameter, **case()}
+            lines.append(json.dumps(result))
+            print(lines[-1], flush=True)
+    if a.json:
+        with open(a.json, "a") as f:
+            f.write("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
