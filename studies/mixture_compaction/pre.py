@@ -59,6 +59,9 @@ def main(argv=None) -> int:
     p.add_argument("--pressures", type=float, nargs="+", default=None, help="explicit P/E stages (overrides the above)")
     p.add_argument("--element", choices=("T3", "T6"), default="T3", help="soft-disk elements (default T3, as the paper)")
     p.add_argument("--elements", type=int, default=92, help="triangles per soft disk (default 92, as the paper)")
+    p.add_argument("--volumetric", choices=("standard", "mean_dilatation"), default=None,
+                   help="volumetric term of the soft disks (default: mean_dilatation for T6, standard for T3); "
+                        "T6 standard reaches P/E = 1 where T6 mean_dilatation does not (study README)")
     p.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
                    help="override a scene parameter of the runs, e.g. --set solver.time_step=0.5 (repeatable)")
     p.add_argument("--force", action="store_true",
@@ -68,6 +71,7 @@ def main(argv=None) -> int:
     from pre.jamming import jammed_rigid_scene
     from post.frames import read_frames_table
     from pre.mixture import compaction_parameters, mixture_scene
+    from pre.scene import neo_hookean_material
 
     w = Path(a.workdir)
     if any(k < 0 or k > 1 for k in a.kappa) or any(m < 0 for m in a.mu) or a.n < 2:
@@ -105,7 +109,7 @@ def main(argv=None) -> int:
                 name = run_name(kappa, mu, seed)
                 folder, soft = mixture_scene(rigid_scene, w / "runs" / name / "scene", kappa, mu,
                                              np.random.default_rng(seed), element=a.element,
-                                             n_elements=a.elements, parameters=params)
+                                             n_elements=a.elements, volumetric=a.volumetric, parameters=params)
                 radii = np.asarray(read_scene(folder).radius)
                 actual = float(np.sum(radii[soft] ** 2) / np.sum(radii**2))
                 runs.append({"name": name, "kappa": kappa, "mu": mu, "seed": seed, "n_soft": int(soft.sum()),
@@ -113,6 +117,7 @@ def main(argv=None) -> int:
                              "out": str((w / "runs" / name / "out").relative_to(w))})
                 print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})", flush=True)
     study = {"study": "mixture_compaction", "n": a.n, "element": a.element, "elements": a.elements,
+             "volumetric": neo_hookean_material(a.element, a.volumetric)["volumetric"],
              "pressures_over_E": [float(x) for x in pressures], "young": 1.0, "poisson": 0.495,
              "overrides": overrides, "jamming": jams, "runs": runs,
              "pre_seconds": round(time.perf_counter() - t_start, 1)}
