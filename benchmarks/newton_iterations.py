@@ -55,11 +55,7 @@ def three_disks(folder: Path, h: float, steps: int = 8) -> dict:
     """The pressed three-disk scene at time step h: counts over ``steps`` steps."""
     from tests.deformable import scenes
 
-    soft = [scenes.disk(30, "T3", centre=c, radius=1.0) for c in ((0.0, 0.0), (2.0, 0.0), (1.0, 1.73))]
-    params = scenes.parameters((-1.02, 3.02, -1.02, 2.75), element="T3", friction=0.3, time_step=h,
-                               newton_tolerance=1e-9, nlgs_tolerance=1e-3, pressures=(0.05,))
-    scenes.write(folder, params, soft=soft)
-    model, stepper, state = scenes.load(folder)
+    model, stepper, state = scenes.pressed_three(folder, 0.3, h)
     t0, end = time.perf_counter(), "ok"
     try:
         for _ in range(steps):

@@ -61,6 +61,17 @@ def write(folder, params: dict, soft=(), rigid=()) -> Path:
     return write_scene(folder, params, centres, radii, mats, meshes=meshes)
 
 
+def pressed_three(folder, friction: float, time_step: float, newton_tolerance: float = 1e-9,
+                  nlgs_tolerance: float = 1e-3, pressure: float = 0.05):
+    """(model, stepper, state) of three soft T3 x 30 disks of radius 1 in a box just larger than
+    them, pressed together by the walls at ``pressure`` (P/E)."""
+    soft = [disk(30, "T3", centre=c, radius=1.0) for c in ((0.0, 0.0), (2.0, 0.0), (1.0, 1.73))]
+    params = parameters((-1.02, 3.02, -1.02, 2.75), element="T3", friction=friction, time_step=time_step,
+                        newton_tolerance=newton_tolerance, nlgs_tolerance=nlgs_tolerance, pressures=(pressure,))
+    write(folder, params, soft=soft)
+    return load(folder)
+
+
 def load(folder):
     """(model, stepper, state) of a scene folder."""
     from compute.model import Model

@@ -28,13 +28,7 @@ NEWTON_TOL, CONTACT_TOL = 1e-9, 1e-3
 
 @pytest.fixture(scope="module")
 def pressed(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("three")
-    r = 1.0
-    soft = [scenes.disk(30, "T3", centre=c, radius=r) for c in ((0.0, 0.0), (2.0, 0.0), (1.0, 1.73))]
-    params = scenes.parameters((-1.02, 3.02, -1.02, 2.75), element="T3", friction=0.3, time_step=1.0,
-                               newton_tolerance=NEWTON_TOL, nlgs_tolerance=CONTACT_TOL, pressures=(0.05,))
-    scenes.write(folder, params, soft=soft)
-    return scenes.load(folder)
+    return scenes.pressed_three(tmp_path_factory.mktemp("three"), 0.3, 1.0, NEWTON_TOL, CONTACT_TOL)
 
 
 def dense_check(model, stepper, q0, v0, v, contacts) -> tuple[float, Compliance]:
