@@ -185,14 +185,6 @@ class SoftBodies:
         return self.matrices.solve(rhs, touched) if touched.any() else np.zeros_like(rhs)
 
     @sized_to_group
-    def recover(self, hr, v_free, v) -> None:
-        """v_b = v_free,b + M̂_b⁻¹ (H r)_b for every body with a contact impulse (in place in v)."""
-        touched = np.any(hr[self.dofs].reshape(self.B, -1) != 0.0, axis=1)
-        if touched.any():
-            vb = v[self.dofs].reshape(self.B, -1)
-            vb[touched] = v_free[self.dofs].reshape(self.B, -1)[touched] + self.compliance_times(hr)[touched]
-
-    @sized_to_group
     def area_change(self, v, lo: float, hi: float):
         """None if every element keeps J / J_n within [lo, hi] at x_θ and x_new for velocities v;
         else (body id, elements (k,), smallest ratio) of the first body that does not."""
