@@ -158,8 +158,11 @@ class SoftBodies:
 
     def settle(self, v_old, v_new, tol: float) -> None:
         """Mark the bodies whose position correction h θ |v_new - v_old| is below ``tol``."""
-        dv = np.abs(v_new[self.dofs] - v_old[self.dofs]).reshape(self.B, -1).max(axis=1)
-        self._settled |= self._h * self._theta * dv <= tol
+        self._settled |= self.corrections(v_old, v_new) <= tol
+
+    def corrections(self, v_old, v_new) -> np.ndarray:
+        """(B,) position correction h θ max |v_new - v_old| of each body of the group."""
+        return self._h * self._theta * np.abs(v_new[self.dofs] - v_old[self.dofs]).reshape(self.B, -1).max(axis=1)
 
     @sized_to_group
     def compliance(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -119,6 +119,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
         if not np.all(np.isfinite(v_new)):
             raise StepFailure(f"non-finite velocities at Newton iteration {it}")
         err = h * theta * float(np.max(np.abs(v_new - v))) if n else 0.0
+        last = (v, v_new)
         if err <= tol:
             v = _admissible(model, v, v_new, h, stats)
             break
@@ -137,8 +138,21 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
         err_prev = err
     else:
         raise StepFailure(f"Newton did not converge in {max_iterations} iterations "
-                          f"(last position correction {err:.3g}, tolerance {tol:.3g})")
+                          f"(last position correction {err:.3g}, tolerance {tol:.3g}{_slowest(model, *last, tol)})")
     return v, report, it
+
+
+def _slowest(model, v, v_new, tol: float, shown: int = 5) -> str:
+    """'; above it in body 3 (2.1e-07), ...': the soft bodies whose last correction exceeded
+    ``tol``, largest first (at most ``shown``); '' if none did."""
+    c = np.concatenate([np.zeros(0)] + [g.corrections(v, v_new) for g in model.soft])
+    ids = model.soft_ids
+    over = np.flatnonzero(c > tol)
+    if not over.size:
+        return ""
+    top = over[np.argsort(c[over])[::-1][:shown]]
+    more = f" and {over.size - shown} more" if over.size > shown else ""
+    return "; above it in " + ", ".join(f"body {ids[i]} ({c[i]:.2g})" for i in top) + more
 
 
 def _contact_dofs(model, contacts) -> list:
