@@ -1,6 +1,6 @@
 """Newton iterations of the single particle against the depth of Anderson acceleration.
 
-The single-particle study's default scene (T6 × 92, 16 stages to P/E = 1, h = 10), run once per
+The single-particle study's default scene (16 stages to P/E = 1, h = 10), run once per
 depth of ``compute.stepping.newton.ANDERSON`` in this process: steps, Newton iterations, step
 cuts, compute wall time and the final φ_p. Writes benchmarks/results/anderson_depth.md.
 
@@ -18,7 +18,7 @@ from pathlib import Path
 import compute.stepping.newton as newton
 from compute.progress import Display
 from compute.run import Run
-from pre.single_particle import write
+from pre.single_particle import ELEMENTS, write
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -28,7 +28,7 @@ def main() -> None:
     ap.add_argument("--depths", type=int, nargs="+", default=[4, 6, 8, 12])
     a = ap.parse_args()
     lines = ["# Single particle: Newton iterations against the Anderson depth", "",
-             f"`python benchmarks/anderson_depth.py --depths {' '.join(map(str, a.depths))}` (T6 × 92, 16 stages "
+             f"`python benchmarks/anderson_depth.py --depths {' '.join(map(str, a.depths))}` (T6 standard, target {ELEMENTS} triangles, 16 stages "
              "to P/E = 1, h = 10; the first depth also pays numba's cache loading).", "",
              "| depth | steps | Newton iterations | cuts | compute (s) | final φ_p |", "|---|---|---|---|---|---|"]
     with tempfile.TemporaryDirectory() as tmp:

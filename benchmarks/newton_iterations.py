@@ -3,7 +3,7 @@
 Measures the checkout of the current directory (so that a git worktree of another commit can run
 this same script), one thread, one JSON line per case (--json appends them to a file):
 
-- ``single``: the single-particle study's scene (T6 x 92, 16 stages to P/E = 1) at the time
+- ``single``: the single-particle study's default scene (16 stages to P/E = 1) at the time
   steps --single-h; the iteration counts of this scene jump by tens of percent with h (the
   body's rigid rotation is unstable under the load and held by nothing), so several h are run;
 - ``three``: three soft T3 disks pressed by the walls with friction 0.3, contact tolerance 1e-3,

@@ -14,13 +14,19 @@ import numpy as np
 from post.errors import OutputError
 
 
-def young_modulus(out: Path) -> float:
-    """E of the (single) neo-Hookean material of the run (out/scene.toml, copied by compute)."""
-    data = tomllib.loads((out / "scene.toml").read_text())
+def soft_material(folder: Path) -> dict:
+    """The (single) neo-Hookean material of a run or scene folder (its scene.toml; compute copies
+    the scene's into the output folder)."""
+    data = tomllib.loads((Path(folder) / "scene.toml").read_text())
     soft = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"]
     if len(soft) != 1:
-        raise OutputError(out / "scene.toml", "materials", "one neo_hookean material", len(soft))
-    return float(soft[0]["young"])
+        raise OutputError(Path(folder) / "scene.toml", "materials", "one neo_hookean material", len(soft))
+    return soft[0]
+
+
+def young_modulus(out: Path) -> float:
+    """E of the (single) neo-Hookean material of the run."""
+    return float(soft_material(out)["young"])
 
 
 def element_count(scene: Path) -> int:
@@ -31,14 +37,14 @@ def element_count(scene: Path) -> int:
 
 
 def mesh_label(out: Path) -> str:
-    """'T6, 92 elements': the element type and count of the run's soft disk (for legends)."""
-    data = tomllib.loads((out / "scene.toml").read_text())
-    m = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"][0]
+    """'T6 standard, 92 elements': the element type, volumetric term and count of the run's soft
+    disk (for legends)."""
+    m = soft_material(out)
     try:
         n = element_count(out.parent / "scene")
     except Exception:  # noqa: BLE001 - the label is cosmetic
         n = "?"
-    return f"{m['element']}, {n} elements"
+    return f"{m['element']} {m['volumetric'].replace('_', ' ')}, {n} elements"
 
 
 def curve(out: Path):

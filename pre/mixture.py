@@ -98,7 +98,7 @@ def choose_deformable(radii: np.ndarray, kappa: float, rng: np.random.Generator 
 
 def mixture_scene(rigid_scene: str | Path, folder: str | Path, kappa: float, friction: float,
                   rng: np.random.Generator | None = None, *, element: str = "T3", n_elements: int = 92,
-                  volumetric: str | None = None, young: float = 1.0, poisson: float = 0.495,
+                  volumetric: str = "standard", young: float = 1.0, poisson: float = 0.495,
                   parameters: dict | None = None) -> tuple[Path, np.ndarray]:
     """Write ``folder`` (scene.toml + bodies.vtu): the rigid scene ``rigid_scene`` (a jammed
     packing of rigid disks, read from its files) with a fraction ``kappa`` of its particle

@@ -59,9 +59,9 @@ def main(argv=None) -> int:
     p.add_argument("--pressures", type=float, nargs="+", default=None, help="explicit P/E stages (overrides the above)")
     p.add_argument("--element", choices=("T3", "T6"), default="T3", help="soft-disk elements (default T3, as the paper)")
     p.add_argument("--elements", type=int, default=92, help="triangles per soft disk (default 92, as the paper)")
-    p.add_argument("--volumetric", choices=("standard", "mean_dilatation"), default=None,
-                   help="volumetric term of the soft disks (default: mean_dilatation for T6, standard for T3); "
-                        "T6 standard reaches P/E = 1 where T6 mean_dilatation does not (study README)")
+    p.add_argument("--volumetric", choices=("standard", "mean_dilatation"), default="standard",
+                   help="volumetric term of the soft disks (default standard; mean_dilatation: T6 only, "
+                        "it does not reach P/E = 1, study README)")
     p.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
                    help="override a scene parameter of the runs, e.g. --set solver.time_step=0.5 (repeatable)")
     p.add_argument("--force", action="store_true",

@@ -17,7 +17,7 @@ WORKDIR/<level>/, then writes in WORKDIR:
 - refinement.png: all the curves (paper Fig. 5).
 
 With --data DIR it also writes DIR/reference_T6g.csv (the finest graded T6 curve) and
-DIR/default_T6_92.csv (the default mesh), the regression data of
+DIR/default_T6.csv (the default mesh, pre.single_particle.ELEMENTS), the regression data of
 tests/deformable/test_single_particle_regression.py.
 
     python -m studies.single_particle.refine --workdir /tmp/sp_refine [--jobs 2] [--levels T6g:1000:960,...]
@@ -36,8 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from compute.progress import read_progress
-from post.single_particle import curve_errors, element_count, write_curve
+from post.single_particle import curve_errors, element_count, soft_material, write_curve
 from post.table import read_measures
+from pre.single_particle import ELEMENTS
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -50,7 +51,6 @@ PHI_COMPARE = 0.95
 # the end of the convergence criterion's range): beyond it the flats hold hundreds of contact
 # nodes and a step of the 8700-element level costs minutes.
 GRADED_STAGES = 12
-GRADED_P_MAX = float(np.geomspace(1e-3, 1.0, 16)[GRADED_STAGES - 1])
 # ... and take h = 2 instead of 10: with hundreds of contact nodes on one body the NLGS sweeps per
 # step grow like h^2 (README, quasi-static settings) and dominate; at h = 10 the 960-segment
 # level needed 10^4-4x10^4 sweeps per step and stalled at P/E = 0.016.
@@ -61,8 +61,11 @@ def level_name(series: str, n: int, segments: int | None) -> str:
     return f"{series}_{n}" if segments is None else f"{series}_{n}_b{segments}"
 
 
-def run_level(work: Path, series: str, n: int, segments: int | None) -> Path:
-    """pre, compute and post of one level in WORKDIR/<level>/, each a process (run in parallel)."""
+def run_level(work: Path, series: str, n: int, segments: int | None, graded_stages: int = GRADED_STAGES,
+              volumetric: str | None = None) -> Path:
+    """pre, compute and post of one level in WORKDIR/<level>/, each a process (run in parallel);
+    a graded level runs the first ``graded_stages`` of the 16 stages; ``volumetric`` is pre's
+    --volumetric (None: its default)."""
     d = work / level_name(series, n, segments)
 
     def stage(name: str, *args: str, **kw) -> None:
@@ -70,8 +73,10 @@ def run_level(work: Path, series: str, n: int, segments: int | None) -> Path:
                        cwd=ROOT, check=True, **kw)
 
     if not (d / "out" / "COMPLETE").is_file() and not (d / "out" / "post" / "fit.json").is_file():
-        extra = [] if segments is None else ["--boundary-segments", str(segments), "--p-max", repr(GRADED_P_MAX),
-                                             "--stages", str(GRADED_STAGES), "--time-step", repr(GRADED_TIME_STEP)]
+        p_max = float(np.geomspace(1e-3, 1.0, 16)[graded_stages - 1])
+        extra = [] if segments is None else ["--boundary-segments", str(segments), "--p-max", repr(p_max),
+                                             "--stages", str(graded_stages), "--time-step", repr(GRADED_TIME_STEP)]
+        extra += ["--volumetric", volumetric] if volumetric and series != "T3" else []
         stage("pre", "--element-type", series[:2], "--elements", str(n), *extra, stdout=subprocess.DEVNULL)
         with open(d / "compute.log", "w") as log:
             stage("compute", stdout=log, stderr=subprocess.STDOUT)
@@ -92,6 +97,10 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=1, help="levels run in parallel (processes)")
     ap.add_argument("--levels", default=None,
                     help="comma-separated SERIES:N[:SEGMENTS] list, e.g. T6:92,T6g:1000:480 (default: all levels)")
+    ap.add_argument("--graded-stages", type=int, default=GRADED_STAGES,
+                    help=f"stages of the graded levels, of the default 16 (default {GRADED_STAGES}: P/E <= 0.16)")
+    ap.add_argument("--volumetric", choices=("standard", "mean_dilatation"), default=None,
+                    help="volumetric term of the T6 levels (default: pre's, standard)")
     ap.add_argument("--data", default=None, help="write the finest graded and the default T6 curves in this folder")
     a = ap.parse_args(argv)
     work = Path(a.workdir)
@@ -108,7 +117,7 @@ def main(argv=None) -> int:
     # the costliest levels first, so that parallel jobs end together
     by_cost = sorted(levels, key=lambda lv: (lv[2] or 0, lv[1] * (4 if lv[0] != "T3" else 1)), reverse=True)
     with ThreadPoolExecutor(a.jobs) as pool:
-        done = dict(zip(by_cost, pool.map(lambda lv: run_level(work, *lv), by_cost)))
+        done = dict(zip(by_cost, pool.map(lambda lv: run_level(work, *lv, a.graded_stages, a.volumetric), by_cost)))
     dirs = {lv: done[lv] for lv in levels}
     curves = {k: read_curve(d) for k, d in dirs.items()}
     counts = {k: element_count(d / "scene") for k, d in dirs.items()}
@@ -151,12 +160,13 @@ def main(argv=None) -> int:
     if a.data:
         graded = [k for k in curves if k[0] == "T6g"]
         for k, name in ((max(graded, key=counts.get) if graded else None, "reference_T6g.csv"),
-                        (("T6", 92, None), "default_T6_92.csv")):
+                        (("T6", ELEMENTS, None), "default_T6.csv")):
             if k in curves:
-                settings = (f"pre settings of the graded series: {GRADED_STAGES} stages, h = {GRADED_TIME_STEP:g}"
+                settings = (f"pre settings of the graded series: {a.graded_stages} stages, h = {GRADED_TIME_STEP:g}"
                             if k[2] else "default pre settings")
                 write_curve(Path(a.data) / name, *curves[k],
-                            f"single-particle curve, T6 mean dilatation, {counts[k]} elements"
+                            f"single-particle curve, T6 {soft_material(dirs[k] / 'scene')['volumetric'].replace('_', ' ')}, "
+                            f"{counts[k]} elements"
                             + (f" graded to {k[2]} boundary segments" if k[2] else "")
                             + f", equilibrated stages (python -m studies.single_particle.refine, {settings})")
     print((work / "refinement_differences.csv").read_text())
