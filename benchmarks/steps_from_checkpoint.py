@@ -4,7 +4,8 @@ Copies RUN/out (frames left out) to a temporary folder, resumes the run from its
 the code of the current directory's checkout (so that a git worktree of another commit can be
 measured with this same script), and takes --steps steps of the loading program, one thread.
 Prints one JSON line: wall seconds, steps, Newton iterations, cuts, load halvings, contact
-sweeps, φ after every step; --json appends it to a file.
+sweeps, φ after every step (with --solves, every contact solve of every step: sweeps, error
+reached, seconds); --json appends it to a file.
 
     python -m studies.mixture_compaction.pre --workdir W --n 500 --kappa 1 --mu 0.2 --stages 7
     python -m compute W/runs/k1_mu0.2_s1/scene --out W/runs/k1_mu0.2_s1/out   # stop it in stage 5
@@ -29,6 +30,19 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 
+class Recorded:
+    """A contact solver that records (sweeps, error, seconds) of each solve in ``log``."""
+
+    def __init__(self, solver, log: list):
+        self.solver, self.log, self.tolerance = solver, log, solver.tolerance
+
+    def solve(self, problem):
+        t = time.perf_counter()
+        report = self.solver.solve(problem)
+        self.log.append((report.iterations, float(f"{report.residual:.3g}"), round(time.perf_counter() - t, 3)))
+        return report
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, required=True, help="a run folder with scene/ and out/ (with a checkpoint)")
@@ -36,6 +50,7 @@ def main() -> None:
     ap.add_argument("--label", default="")
     ap.add_argument("--contact", help="contact solver instead of the scene's (solver.contact)")
     ap.add_argument("--json", type=Path, help="append the result line to this file")
+    ap.add_argument("--solves", action="store_true", help="record every contact solve (sweeps, error, seconds)")
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     from compute.progress import RunProgress
@@ -54,13 +69,17 @@ def main() -> None:
             from compute import solvers
 
             run.stepper.solver = solvers.for_model(replace(run.scene.solver, contact=a.contact), run.model)
+        solves: list = []
+        solver = run.stepper.solver
+        if a.solves:
+            run.stepper.solver = Recorded(run.stepper.solver, solves)
         run.progress = RunProgress(out, len(run.scene.loading.pressures), None)
         st, pressures = run.state, run.scene.loading.pressures
         previous = pressures[st.stage - 1] if st.stage else 0.0
         first = st.step
-        result = {"label": a.label, "commit": commit, "contact": type(run.stepper.solver).__name__,
+        result = {"label": a.label, "commit": commit, "contact": type(solver).__name__,
                   "from_step": first, "stage": st.stage, "newton_iterations": 0, "cuts": 0, "load_halvings": 0,
-                  "sweeps": 0, "phi": [], "step_seconds": []}
+                  "sweeps": 0, "phi": [], "step_seconds": [], **({"solves": []} if a.solves else {})}
         t0 = time.perf_counter()
         try:
             for _ in range(a.steps):
@@ -73,6 +92,9 @@ def main() -> None:
                 result["load_halvings"] += halvings
                 result["sweeps"] += rep.sweeps
                 result["phi"].append(run.model.phi(st.q))
+                if a.solves:
+                    result["solves"].append(solves[:])
+                    solves.clear()
             result["end"] = "ok"
         except Exception as exc:  # a failed step ends the measurement; it is part of the result
             result["end"] = f"{type(exc).__name__}: {exc}"

@@ -41,14 +41,25 @@ def restore(state, snap) -> None:
     state.impulses = copy.deepcopy(imp)
 
 
+def counts(stats: dict) -> tuple[int, int]:
+    """(Newton iterations, contact-solve sweeps) counted so far in a stepper's ``stats``."""
+    return stats["newton_iterations"], stats["nlgs_sweeps"]
+
+
+def charge(rep, stats: dict, since: tuple[int, int]) -> None:
+    """Give the report ``rep`` the Newton iterations and sweeps counted in ``stats`` since
+    ``since`` (:func:`counts`): those of every attempt of the step, failed ones included."""
+    rep.newton_iterations, rep.sweeps = (now - then for now, then in zip(counts(stats), since))
+
+
 def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     """Advance ``state`` by h with ``attempt(state, h) -> StepReport`` (which raises StepFailure)
     in sub-steps h / 2**d, d from ``state.cut_depth``, one level deeper after each failing
     attempt (the rest of the step goes on at that depth). Raises SimulationError (state
     restored) when an attempt fails at depth ``max_cuts``. The report is the last sub-step's, with
-    ``newton_iterations`` of all the step's attempts (counted by the attempts in ``stats``)."""
+    the Newton iterations and sweeps of all the step's attempts (counted by them in ``stats``)."""
     t0, s0 = state.time, state.step
-    iterations0 = stats["newton_iterations"]
+    since = counts(stats)
     snap = snapshot(state)
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts = 2**max_cuts, 0, None, 0  # progress in units of h / 2**max_cuts
@@ -67,7 +78,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             cuts += 1
             depth += 1
     rep.cuts = cuts
-    rep.newton_iterations = stats["newton_iterations"] - iterations0
+    charge(rep, stats, since)
     state.cut_accepted = 0 if depth > depth0 else state.cut_accepted + 1
     state.cut_depth = depth
     if depth and state.cut_accepted >= GROW_AFTER:

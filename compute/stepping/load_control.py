@@ -20,6 +20,7 @@ converged without load control converging the same way.
 from __future__ import annotations
 
 from compute.errors import SimulationError
+from compute.stepping import control
 
 MIN_INCREMENT = 2.0**-10  # floor of Δλ, a fraction of the stage's jump
 GROW_AFTER = 2  # accepted steps at one increment before it doubles
@@ -38,9 +39,9 @@ def applied(previous: float, target: float, fraction: float) -> float:
 def controlled_step(stepper, state, previous: float, target: float, log):
     """One accepted step of the stage from ``previous`` to ``target`` (module docstring); returns
     (StepReport, applied pressure, number of increment halvings this step needed). The report's
-    Newton iterations include those of the failed increments."""
+    Newton iterations and sweeps include those of the failed increments."""
     halvings = 0
-    iterations0 = stepper.stats["newton_iterations"]
+    since = control.counts(stepper.stats)
     while True:
         remaining = 1.0 - state.load_fraction
         dl = min(state.load_increment, remaining)
@@ -61,7 +62,7 @@ def controlled_step(stepper, state, previous: float, target: float, log):
             log(f"stage {state.stage}: step {state.step + 1} failed at P = {pressure:.6g}; load increment "
                 f"halved to {state.load_increment:.3g} of the jump ({exc})")
             continue
-        rep.newton_iterations = stepper.stats["newton_iterations"] - iterations0
+        control.charge(rep, stepper.stats, since)
         state.load_fraction = fraction
         state.load_accepted += 1
         if state.load_accepted >= GROW_AFTER and state.load_increment < 1.0:

@@ -22,16 +22,17 @@ class ScriptedStepper:
 
     def __init__(self, limit: float):
         self.limit, self.asked, self.p = limit, [], 0.0
-        self.stats = {"newton_iterations": 0}
+        self.stats = {"newton_iterations": 0, "nlgs_sweeps": 0}
 
     def step(self, state, pressure):
         self.asked.append(pressure)
         self.stats["newton_iterations"] += 3  # every attempt works, failing ones too
+        self.stats["nlgs_sweeps"] += 40
         if pressure - self.p > self.limit + 1e-15:
             raise SimulationError(f"step {state.step + 1}: body 7: Newton did not converge")
         self.p = pressure
         state.step += 1
-        return SimpleNamespace(newton_iterations=3)
+        return SimpleNamespace(newton_iterations=3, sweeps=40)
 
 
 def fresh_state():
@@ -69,7 +70,7 @@ def test_failing_jump_is_halved_then_grows_back():
     assert halvings >= 4
     assert state.load_fraction == 1.0
     first = ramp.reports[0]  # four failed increments, then the accepted one: all their work
-    assert first.newton_iterations == 3 * 5
+    assert first.newton_iterations == 3 * 5 and first.sweeps == 40 * 5
 
 
 def test_a_diagnosis_at_the_floor():

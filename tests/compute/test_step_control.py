@@ -17,17 +17,18 @@ class ScriptedAttempt:
 
     def __init__(self, largest):
         self.largest, self.asked = largest, []
-        self.stats = {"cuts": 0, "newton_iterations": 0}
+        self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
 
     def __call__(self, state, h):
         self.asked.append(h)
         self.stats["newton_iterations"] += 2  # as the Newton loop counts: failing attempts too
+        self.stats["nlgs_sweeps"] += 9
         state.time += h
         state.step += 1
         if h > self.largest(self.step_index) + 1e-15:
             raise StepFailure(f"too large a step (h = {h})")
         impulse = np.full((1, 2), h)  # an impulse proportional to its sub-step
-        return SimpleNamespace(h=h, sweeps=1, newton_iterations=2, cuts=0, contacts=SimpleNamespace(impulse=impulse))
+        return SimpleNamespace(h=h, sweeps=9, newton_iterations=2, cuts=0, contacts=SimpleNamespace(impulse=impulse))
 
 
 def take(attempt, state, steps, h=1.0, max_cuts=4):
@@ -55,7 +56,7 @@ def test_cut_depth_is_kept_then_grows_back():
     assert all(s.split() == ["1.0"] for s in steps[2 * G + 1:])  # then whole steps again
     assert len(steps) == n and len(steps[2 * G + 1:]) == 3
     assert [r.cuts for r in reports] == [2] + [0] * (n - 1)  # a kept depth is not a cut
-    assert reports[0].newton_iterations == 2 * 6  # all attempts, failed ones too
+    assert reports[0].newton_iterations == 2 * 6 and reports[0].sweeps == 9 * 6  # all attempts, failed ones too
     assert state.step == n and state.time == pytest.approx(n)
 
 
