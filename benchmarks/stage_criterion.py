@@ -1,0 +1,107 @@
+"""Steps per stage against the stage-end test: a scene's whole loading program run with several
+settings of its ``[loading]`` table, against a run with a ten times tighter test.
+
+A stage ends when φ changed by less than ``phi_tolerance`` (relative) between two checks
+``check_every`` steps apart and the walls' inertial number is below ``inertial_tolerance``
+(compute/run.py). Each variant is the scene folder with some of these keys replaced; reported:
+steps per stage, wall seconds, Newton iterations, and the equilibrated φ of every stage with its
+difference from the tight run (phi_tolerance and inertial_tolerance divided by 10), the error the
+test leaves. One thread; the variants run one after the other. Writes
+benchmarks/results/OUTPUT.md.
+
+    python -m studies.mixture_compaction.pre --workdir W --n 144 --kappa 0.5 --mu 0.2 --element T6 \\
+        --pressures 0.01 0.03 0.1 0.3 1
+    python benchmarks/stage_criterion.py --scene W/runs/k0.5_mu0.2_s1/scene --check-every 20 10 5 \\
+        --output stage_criterion_144
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import json  # noqa: E402
+import re  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def variant(scene: Path, folder: Path, settings: dict) -> Path:
+    """A copy of the scene folder with ``settings`` (key -> value) replaced in its [loading] table."""
+    shutil.copytree(scene, folder)
+    text = (folder / "scene.toml").read_text()
+    for key, value in settings.items():
+        text, n = re.subn(rf"^{key} = .*$", f"{key} = {value!r}", text, count=1, flags=re.M)
+        if n != 1:
+            raise SystemExit(f"{scene / 'scene.toml'}: no line '{key} = ...' to replace")
+    (folder / "scene.toml").write_text(text)
+    return folder
+
+
+def run_variant(scene: Path, out: Path) -> dict:
+    """Run a scene folder; its stages' steps and end φ (the last history row of each stage)."""
+    from compute.errors import SimulationError
+    from compute.run import run
+
+    t0 = time.perf_counter()
+    try:
+        run(scene, out, log=lambda m: None)
+        status = "complete"
+    except SimulationError as exc:
+        status = f"failed: {exc}"
+    seconds = time.perf_counter() - t0
+    last: dict[int, dict] = {}
+    for row in csv.DictReader(open(out / "history.csv")):
+        last[int(row["stage"])] = row
+    summary = json.loads((out / "summary.json").read_text())
+    return {"status": status, "seconds": seconds, "steps": [s["steps"] for s in summary["stages"]],
+            "newton": sum(s["newton_iterations"] for s in summary["stages"]),
+            "phi": [float(last[k]["phi"]) for k in sorted(last)]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", type=Path, required=True, help="a scene folder with a pressure-stage program")
+    ap.add_argument("--check-every", type=int, nargs="+", default=[20, 10, 5])
+    ap.add_argument("--output", default="stage_criterion")
+    a = ap.parse_args()
+    text = (a.scene / "scene.toml").read_text()
+    value = {k: float(re.search(rf"^{k} = (.*)$", text, re.M).group(1))
+             for k in ("phi_tolerance", "inertial_tolerance")}
+    variants = {"tight (tolerances / 10)": {"phi_tolerance": value["phi_tolerance"] / 10,
+                                            "inertial_tolerance": value["inertial_tolerance"] / 10}}
+    variants |= {f"check_every = {c}": {"check_every": c} for c in a.check_every}
+    rows = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, (name, settings) in enumerate(variants.items()):
+            folder = variant(a.scene, Path(tmp) / f"v{i}", settings)
+            rows[name] = run_variant(folder, Path(tmp) / f"v{i}_out")
+            r = rows[name]
+            print(f"{name}: {r['status']}, {sum(r['steps'])} steps {r['steps']}, {r['seconds']:.0f} s", flush=True)
+    tight = rows[next(iter(variants))]
+    lines = [f"# Steps per stage against the stage-end test ({a.scene.parent.name})", "",
+             f"`python benchmarks/stage_criterion.py --scene {a.scene} --check-every "
+             f"{' '.join(map(str, a.check_every))} --output {a.output}`; the scene's test: φ change below "
+             f"{value['phi_tolerance']:g} between checks, inertial number below {value['inertial_tolerance']:g}. "
+             "|Δφ| = largest difference of a stage's end φ from the tight run's.", "",
+             "| variant | status | steps per stage | steps | seconds | Newton iterations | end φ per stage | \\|Δφ\\| |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, r in rows.items():
+        dphi = max(abs(p - q) for p, q in zip(r["phi"], tight["phi"])) if len(r["phi"]) == len(tight["phi"]) else float("nan")
+        lines.append(f"| {name} | {r['status']} | {' '.join(map(str, r['steps']))} | {sum(r['steps'])} | "
+                     f"{r['seconds']:.0f} | {r['newton']} | {' '.join(f'{p:.5f}' for p in r['phi'])} | {dphi:.1e} |")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{a.output}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
