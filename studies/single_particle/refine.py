@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 # series -> levels (target elements, boundary segments or None for a uniform mesh)
 SERIES = {"T3": [(n, None) for n in (30, 92, 300, 1000, 3000)],
-          "T6": [(n, None) for n in (30, 92, 300, 1000, 3000)],
+          "T6": [(n, None) for n in (30, 92, ELEMENTS, 300, 1000, 3000)],  # ELEMENTS: the default disk
           "T6g": [(1000, b) for b in (240, 480, 960)]}
 PHI_COMPARE = 0.95
 # The graded levels stop at the 12th of the default 16 stages (P/E = 10^-0.8 = 0.16, phi_p ~ 0.95,
