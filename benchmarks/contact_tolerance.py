@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import shutil
 import subprocess
 import sys
@@ -33,16 +32,12 @@ PRESSURES = (0.01, 0.03, 0.1, 0.3)
 
 def case_scene(base: Path, folder: Path, contact: str, tol: float, h: float, sweeps: int) -> Path:
     """A copy of the scene ``base`` with the solver settings of one case."""
+    from pre.scene import copy_scene
+
     if folder.exists():
         shutil.rmtree(folder)
-    shutil.copytree(base, folder)
-    toml = folder / "scene.toml"
-    text = toml.read_text()
-    for key, value in (("nlgs_tolerance", repr(tol)), ("nlgs_max_sweeps", str(sweeps)), ("time_step", repr(h))):
-        text, n = re.subn(rf"^{key} = .*$", f"{key} = {value}", text, count=1, flags=re.M)
-        assert n == 1, key
-    toml.write_text(text.replace("[solver]\n", f'[solver]\ncontact = "{contact}"\n', 1))
-    return folder
+    return copy_scene(base, folder, {"solver.contact": contact, "solver.nlgs_tolerance": tol,
+                                     "solver.nlgs_max_sweeps": sweeps, "solver.time_step": h})
 
 
 def run_case(scene: Path, out: Path) -> dict:

@@ -13,7 +13,6 @@ allows about 1e-4 relative). Writes benchmarks/results/mixture_settings.md.
 from __future__ import annotations
 
 import argparse
-import re
 import shutil
 import time
 from pathlib import Path
@@ -42,15 +41,12 @@ def prepare(work: Path, n: int, p_from: float) -> Path:
 
 def one(base: Path, work: Path, h: float, newton: float, p_to: float) -> dict:
     from compute.run import Run
+    from pre.scene import copy_scene
 
     d = work / f"h{h:g}_n{newton:g}"
     shutil.rmtree(d, ignore_errors=True)
-    shutil.copytree(base / "scene", d / "scene")
+    copy_scene(base / "scene", d / "scene", {"solver.time_step": h, "solver.newton_tolerance": newton})
     shutil.copytree(base / "out", d / "out")
-    text = (d / "scene" / "scene.toml").read_text()
-    text = re.sub(r"\ntime_step = .*", f"\ntime_step = {h!r}", text)
-    text = re.sub(r"\nnewton_tolerance = .*", f"\nnewton_tolerance = {newton!r}", text)
-    (d / "scene" / "scene.toml").write_text(text)
     r = Run(d / "scene", d / "out", resume=True, log=lambda m: None)
     s0, t0 = r.state.step, time.perf_counter()
     r._pressure_stage(p_to)

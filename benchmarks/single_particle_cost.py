@@ -94,9 +94,10 @@ def run_case(work: Path, element: str, n: int, h: float, ref, segments: int | No
 def phi_difference(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.ndarray) -> float:
     """max |φ_run − φ_ref| at the reference's pressures inside the run's range (all its stages,
     P/E <= 0.4), the run's curve interpolated in ln P."""
-    o = np.argsort(p)
-    sel = (p_ref >= p.min()) & (p_ref <= p.max())
-    return float(np.max(np.abs(np.interp(np.log(p_ref[sel]), np.log(p[o]), phi[o]) - phi_ref[sel])))
+    from post.single_particle import phi_at
+
+    inside, at = phi_at(p, phi, p_ref)
+    return float(np.max(np.abs(at[inside] - phi_ref[inside])))
 
 
 def plot(rows: list[dict], path: Path) -> None:

@@ -25,25 +25,14 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import json  # noqa: E402
-import re  # noqa: E402
-import shutil  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from pre.scene import copy_scene  # noqa: E402
+
 RESULTS = Path(__file__).resolve().parent / "results"
-
-
-def variant(scene: Path, folder: Path, settings: dict) -> Path:
-    """A copy of the scene folder with ``settings`` (key -> value) replaced in its [loading] table."""
-    shutil.copytree(scene, folder)
-    text = (folder / "scene.toml").read_text()
-    for key, value in settings.items():
-        text, n = re.subn(rf"^{key} = .*$", f"{key} = {value!r}", text, count=1, flags=re.M)
-        if n != 1:
-            raise SystemExit(f"{scene / 'scene.toml'}: no line '{key} = ...' to replace")
-    (folder / "scene.toml").write_text(text)
-    return folder
 
 
 def run_variant(scene: Path, out: Path) -> dict:
@@ -73,16 +62,14 @@ def main() -> None:
     ap.add_argument("--check-every", type=int, nargs="+", default=[20, 10, 5])
     ap.add_argument("--output", default="stage_criterion")
     a = ap.parse_args()
-    text = (a.scene / "scene.toml").read_text()
-    value = {k: float(re.search(rf"^{k} = (.*)$", text, re.M).group(1))
-             for k in ("phi_tolerance", "inertial_tolerance")}
-    variants = {"tight (tolerances / 10)": {"phi_tolerance": value["phi_tolerance"] / 10,
-                                            "inertial_tolerance": value["inertial_tolerance"] / 10}}
-    variants |= {f"check_every = {c}": {"check_every": c} for c in a.check_every}
+    value = tomllib.loads((a.scene / "scene.toml").read_text())["loading"]
+    variants = {"tight (tolerances / 10)": {"loading.phi_tolerance": value["phi_tolerance"] / 10,
+                                            "loading.inertial_tolerance": value["inertial_tolerance"] / 10}}
+    variants |= {f"check_every = {c}": {"loading.check_every": c} for c in a.check_every}
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
         for i, (name, settings) in enumerate(variants.items()):
-            folder = variant(a.scene, Path(tmp) / f"v{i}", settings)
+            folder = copy_scene(a.scene, Path(tmp) / f"v{i}", settings)
             rows[name] = run_variant(folder, Path(tmp) / f"v{i}_out")
             r = rows[name]
             print(f"{name}: {r['status']}, {sum(r['steps'])} steps {r['steps']}, {r['seconds']:.0f} s", flush=True)

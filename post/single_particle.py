@@ -69,16 +69,23 @@ def fit(p: np.ndarray, phi: np.ndarray, p_max: float, phi_max: float):
     return fit_single_particle(phi[sel], p[sel]), int(sel.sum())
 
 
+def phi_at(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A curve (P/E (n,), φ_p (n,)) at the pressures ``p_ref`` (m,), interpolated linearly in
+    ln P: (mask (m,) of the pressures inside the curve's range, φ_p (m,), NaN outside it)."""
+    o = np.argsort(p)
+    inside = (p_ref >= p.min()) & (p_ref <= p.max())
+    return inside, np.where(inside, np.interp(np.log(p_ref), np.log(p[o]), phi[o]), np.nan)
+
+
 def curve_errors(p: np.ndarray, phi: np.ndarray, p_ref: np.ndarray, phi_ref: np.ndarray,
                  phi_max: float = 0.95) -> tuple[float, float]:
     """Largest relative differences of a curve (P/E (n,), φ_p (n,)) from a reference curve (m,),
     over φ_p <= ``phi_max``: of φ_p at equal P (the curve interpolated in log P at the reference
     pressures inside its range) and of P at equal φ_p (the reference interpolated, in log P, at
     the curve's φ_p). NaN where the curves do not overlap."""
-    o = np.argsort(p)
-    sel = (phi_ref <= phi_max) & (p_ref >= p.min()) & (p_ref <= p.max())
-    phi_at = np.interp(np.log(p_ref[sel]), np.log(p[o]), phi[o])
-    e_phi = float(np.max(np.abs(phi_at / phi_ref[sel] - 1))) if sel.any() else np.nan
+    inside, at = phi_at(p, phi, p_ref)
+    sel = inside & (phi_ref <= phi_max)
+    e_phi = float(np.max(np.abs(at[sel] / phi_ref[sel] - 1))) if sel.any() else np.nan
     o = np.argsort(phi_ref)
     ok = (phi <= phi_max) & (phi >= phi_ref.min()) & (phi <= phi_ref.max())
     p_at = np.exp(np.interp(phi[ok], phi_ref[o], np.log(p_ref[o])))

@@ -76,16 +76,17 @@ velocity control, are written only when given). Raises SceneError on an unknown,
     return params
 
 
-def overridden(params: dict, overrides: dict | None) -> dict:
-    """A copy of ``params`` with ``overrides`` ("table.key" -> value) applied and validated."""
+def overridden(params: dict, overrides: dict | None, file=PARAMETERS) -> dict:
+    """A copy of ``params`` with ``overrides`` ("table.key" -> value) applied and validated
+    (errors name ``file``)."""
     out = copy.deepcopy(params)
     for dotted, value in (overrides or {}).items():
         table, _, key = dotted.partition(".")
         known = [f"{t}.{k.name}" for t, keys in schema.SETTINGS.items() for k in keys]
         if dotted not in known:
-            raise SceneError(PARAMETERS, dotted, schema.unknown_key(dotted, known))
+            raise SceneError(file, dotted, schema.unknown_key(dotted, known))
         out[table][key] = _plain(value)
-    _validate(PARAMETERS, out)
+    _validate(file, out)
     return out
 
 
@@ -137,6 +138,19 @@ def write_scene(folder: str | Path, parameters: dict, centres: np.ndarray, radii
     (folder / "scene.toml").write_text(tomli_w.dumps(params))
     write_bodies(folder / BODIES_FILE, np.asarray(centres, float), np.asarray(radii, float),
                  np.array([index[m] for m in material], dtype=np.int64), meshes=meshes)
+    return folder
+
+
+def copy_scene(source: str | Path, folder: str | Path, overrides: dict) -> Path:
+    """Copy the scene folder ``source`` to ``folder`` with ``overrides`` ("table.key" -> value,
+    as :func:`overridden`, validated) applied to its scene.toml; returns ``folder``."""
+    import shutil
+    import tomllib
+
+    source, folder = Path(source), Path(folder)
+    params = overridden(tomllib.loads((source / "scene.toml").read_text()), overrides, source / "scene.toml")
+    shutil.copytree(source, folder)
+    (folder / "scene.toml").write_text(tomli_w.dumps(params))
     return folder
 
 

@@ -68,3 +68,19 @@ def test_formats_doc_example_is_a_valid_scene():
     text = (ROOT / "docs" / "FORMATS.md").read_text()
     example = text.split("```toml\n", 1)[1].split("```", 1)[0]
     parse_parameters("docs/FORMATS.md", tomllib.loads(example))
+
+
+def test_copy_scene_applies_overrides_and_names_the_source_file(tmp_path):
+    import numpy as np
+
+    from compute.scene import read_scene
+    from pre.scene import copy_scene, write_scene
+
+    source = write_scene(tmp_path / "a", _minimal(), np.full((1, 2), 0.5), np.full(1, 0.25), ["rigid"])
+    copy = copy_scene(source, tmp_path / "b", {"loading.check_every": 5, "solver.contact": "nlgs"})
+    scene = read_scene(copy)
+    assert scene.loading.check_every == 5 and scene.solver.contact == "nlgs"
+    assert (copy / "bodies.vtu").read_bytes() == (source / "bodies.vtu").read_bytes()
+    assert read_scene(source).loading.check_every == 10  # the source is left as it was
+    with pytest.raises(SceneError, match=r"a/scene.toml: field 'loading.check_every'"):
+        copy_scene(source, tmp_path / "c", {"loading.check_every": 0})
