@@ -49,6 +49,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--label", default="")
     ap.add_argument("--contact", help="contact solver instead of the scene's (solver.contact)")
+    ap.add_argument("--time-step", type=float, help="time step h instead of the scene's (solver.time_step)")
     ap.add_argument("--json", type=Path, help="append the result line to this file")
     ap.add_argument("--solves", action="store_true", help="record every contact solve (sweeps, error, seconds)")
     a = ap.parse_args()
@@ -69,6 +70,8 @@ def main() -> None:
             from compute import solvers
 
             run.stepper.solver = solvers.for_model(replace(run.scene.solver, contact=a.contact), run.model)
+        if a.time_step:
+            run.stepper.h = a.time_step
         solves: list = []
         solver = run.stepper.solver
         if a.solves:
@@ -77,9 +80,9 @@ def main() -> None:
         st, pressures = run.state, run.scene.loading.pressures
         previous = pressures[st.stage - 1] if st.stage else 0.0
         first = st.step
-        result = {"label": a.label, "commit": commit, "contact": type(solver).__name__,
+        result = {"label": a.label, "commit": commit, "contact": type(solver).__name__, "h": run.stepper.h,
                   "from_step": first, "stage": st.stage, "newton_iterations": 0, "cuts": 0, "load_halvings": 0,
-                  "sweeps": 0, "phi": [], "step_seconds": [], **({"solves": []} if a.solves else {})}
+                  "sweeps": 0, "phi": [], "step_seconds": [], "sub_steps": [], **({"solves": []} if a.solves else {})}
         t0 = time.perf_counter()
         try:
             for _ in range(a.steps):
@@ -92,6 +95,7 @@ def main() -> None:
                 result["load_halvings"] += halvings
                 result["sweeps"] += rep.sweeps
                 result["phi"].append(run.model.phi(st.q))
+                result["sub_steps"].append(getattr(rep, "sub_steps", 1))
                 if a.solves:
                     result["solves"].append(solves[:])
                     solves.clear()

@@ -19,7 +19,8 @@ FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibr
                  "xmin", "xmax", "ymin", "ymax"]
 HISTORY_COLUMNS = ["time", "step", "stage", "pressure_applied", "xmin", "xmax", "ymin", "ymax", "phi",
                    "nlgs_sweeps", "nlgs_residual", "kinetic_energy", "inertial_number", "n_contacts",
-                   "max_penetration", "newton_iterations", "cuts", "load_halvings"]
+                   "max_penetration", "newton_iterations", "cuts", "load_halvings", "sub_steps"]
+ADDED_COLUMNS = 1  # trailing columns that histories of earlier versions lack (resumed: left empty, unknown)
 SERIES = ("bodies", "contacts", "walls")
 
 
@@ -162,12 +163,13 @@ def rows_up_to_step(path: Path, step: int) -> list[dict]:
     with open(path, newline="") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
-        if header != HISTORY_COLUMNS:
+        n = len(header or ())
+        if n < len(HISTORY_COLUMNS) - ADDED_COLUMNS or header != HISTORY_COLUMNS[:n]:
             raise OutputFolderError(path, "header", "the history columns of this version (" + ",".join(HISTORY_COLUMNS)
                              + "); run again without --resume", header)
         for fields in reader:
-            row = dict(zip(HISTORY_COLUMNS, fields))
-            if len(fields) != len(HISTORY_COLUMNS) or not row["step"].isdigit() or int(row["step"]) > step:
+            row = dict(zip(HISTORY_COLUMNS, fields + [""] * (len(HISTORY_COLUMNS) - n)))
+            if len(fields) != n or not row["step"].isdigit() or int(row["step"]) > step:
                 break
             rows.append(row)
             if int(row["step"]) == step:

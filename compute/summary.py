@@ -10,8 +10,8 @@ A run that went through its whole loading program ends
 
 Both are derived from ``history.csv`` and ``frames.csv``, so a resumed run counts its steps from
 before the resume too. ``summary.json``: per stage its target pressure, steps, whether it was
-equilibrated, Newton iterations, cuts, load-increment halvings, contact misses and the largest
-contact residual; and the totals.
+equilibrated, Newton iterations, cuts, load-increment halvings, sub-steps (of the steps whose
+history records them), contact misses and the largest contact residual; and the totals.
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ def run_summary(out: Path, scene) -> dict:
             "newton_iterations": sum(int(r["newton_iterations"]) for r in rows),
             "cuts": sum(int(r["cuts"]) for r in rows),
             "load_halvings": sum(int(r["load_halvings"]) for r in rows),
+            "sub_steps": sum(int(r["sub_steps"]) for r in rows if r.get("sub_steps")),  # empty: resumed older history
             "contact_misses": sum(x > tol for x in residuals),
             "max_contact_residual": max(residuals, default=0.0),
         })

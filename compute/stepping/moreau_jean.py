@@ -41,6 +41,7 @@ class StepReport:
     newton_iterations: int = 1
     cuts: int = 0
     h: float = 0.0
+    sub_steps: int = 1  # accepted sub-steps the step was taken in (compute.stepping.control)
 
 
 class Stepper:

@@ -85,3 +85,55 @@ def test_no_cut_helps_restores_the_state():
     with pytest.raises(SimulationError, match="down to sub-steps h / 4 = 0.25"):
         take(attempt, state, 1, max_cuts=2)
     assert state.step == 0 and state.time == 0.0 and state.cut_depth == 0
+
+
+class CostlyAttempt:
+    """Always converges; a sub-step of size h costs ``cost(h)`` = (Newton iterations, sweeps)."""
+
+    def __init__(self, cost):
+        self.cost, self.asked = cost, []
+        self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
+
+    def __call__(self, state, h):
+        self.asked.append(h)
+        its, sweeps = self.cost(h)
+        self.stats["newton_iterations"] += its
+        self.stats["nlgs_sweeps"] += sweeps
+        state.time += h
+        state.step += 1
+        return SimpleNamespace(h=h, sweeps=sweeps, newton_iterations=its, cuts=0,
+                               contacts=SimpleNamespace(impulse=np.zeros((1, 2))))
+
+
+def _slow_above(h_slow, its, sweeps):
+    return lambda h: (its, sweeps) if h > h_slow else (2, 10)
+
+
+@pytest.mark.parametrize("its, sweeps, deeper", [
+    (control.SLOW_ITERATIONS + 1, control.SLOW_SWEEPS + 1, True),
+    (control.SLOW_ITERATIONS + 1, control.SLOW_SWEEPS, False),  # many iterations, easy contact solves
+    (control.SLOW_ITERATIONS, 10 * control.SLOW_SWEEPS, False),  # few iterations
+])
+def test_a_slow_sub_step_sends_the_next_ones_deeper(its, sweeps, deeper):
+    """Sub-steps above h = 0.3 are slow (both counts above their limits) or not. A slow one is
+    kept (not taken again): step 1, whole and slow, is done, and step 2 starts at h / 2, is slow
+    again and goes on at h / 4, where step 3 stays; time still advances by whole steps, and the
+    depth is not a cut."""
+    attempt = CostlyAttempt(_slow_above(0.3, its, sweeps))
+    state = State(np.zeros(1), np.zeros(1))
+    reports = take(attempt, state, 3)
+    steps = [s.split() for s in " ".join(str(a) for a in attempt.asked).split("|")[1:]]
+    if deeper:
+        assert steps == [["1.0"], ["0.5", "0.25", "0.25"], ["0.25"] * 4]
+        assert [r.sub_steps for r in reports] == [1, 3, 4] and state.cut_depth == 2
+    else:
+        assert steps == [["1.0"]] * 3 and state.cut_depth == 0
+    assert all(r.cuts == 0 for r in reports) and state.time == pytest.approx(3.0)
+
+
+def test_slow_sub_steps_leave_a_level_for_cuts():
+    """Depth from slowness stops one level above max_cuts: a failure there can still be cut."""
+    attempt = CostlyAttempt(lambda h: (control.SLOW_ITERATIONS + 1, control.SLOW_SWEEPS + 1))
+    state = State(np.zeros(1), np.zeros(1))
+    take(attempt, state, 2, max_cuts=3)
+    assert state.cut_depth == 2 and min(a for a in attempt.asked if a != "|") == 0.25
