@@ -82,7 +82,7 @@ def main() -> None:
         first = st.step
         result = {"label": a.label, "commit": commit, "contact": type(solver).__name__, "h": run.stepper.h,
                   "from_step": first, "stage": st.stage, "newton_iterations": 0, "cuts": 0, "load_halvings": 0,
-                  "sweeps": 0, "phi": [], "step_seconds": [], "sub_steps": [], **({"solves": []} if a.solves else {})}
+                  "sweeps": 0, "phi": [], "step_seconds": [], "step_counts": [], "sub_steps": [], **({"solves": []} if a.solves else {})}
         t0 = time.perf_counter()
         try:
             for _ in range(a.steps):
@@ -96,6 +96,7 @@ def main() -> None:
                 result["sweeps"] += rep.sweeps
                 result["phi"].append(run.model.phi(st.q))
                 result["sub_steps"].append(getattr(rep, "sub_steps", 1))
+                result["step_counts"].append((rep.newton_iterations, rep.sweeps))
                 if a.solves:
                     result["solves"].append(solves[:])
                     solves.clear()

@@ -17,17 +17,20 @@ starting whole, 284 s growing after 4 steps, 140 s after 16 (benchmarks/results/
 soft_mixture_steps.md).
 
 A sub-step that converges but was slow, with more than ``SLOW_ITERATIONS`` Newton iterations
-and more than ``SLOW_SWEEPS`` contact-solve sweeps in all, also sends the rest of the step, and
-the next steps, one level deeper (kept one level above ``max_cuts``, so that a failure can still
-be cut); a converged sub-step is not taken again. Why: where a step's contact problems are hard,
-their cost grows much faster than the step's length. Measured on a 500-disk soft mixture
-(κ = 1, μ = 0.2, T6) compacting at P/E = 0.32, the same 5 time units from one checkpoint:
-h = 0.5 in 306 s (per step 12 Newton iterations, 1476 sweeps), h = 0.25 in 70 s (6.6, 250),
-h = 0.125 in 84 s (5.6, 167); φ within 7e-5 of each other. Both counts make the trigger. On
-Newton iterations alone, scenes whose iterations are many for other reasons (a strict Newton
-tolerance, a single particle's unstable rotation), and no fewer in smaller steps, ran 1.5–3
-times slower; on sweeps alone, sub-steps of that mixture went on needing 500 sweeps now and then
-at any depth, and it went down to h / 8 (210 s).
+and more than ``SLOW_SWEEPS`` contact-solve sweeps per iteration, also sends the rest of the
+step, and the next steps, one level deeper (kept one level above ``max_cuts``, so that a failure
+can still be cut); a converged sub-step is not taken again. Why: where a step's contact problems
+are hard, their cost grows much faster than the step's length. Measured on a 500-disk soft
+mixture (κ = 1, μ = 0.2, T6) compacting at P/E = 0.32, the same 5 time units from one
+checkpoint: h = 0.5 in 306 s (per step 12 Newton iterations, 1476 sweeps), h = 0.25 in 70 s
+(6.6, 250), h = 0.125 in 84 s (5.6, 167); φ within 7e-5 of each other. The Newton iterations per
+unit time hardly change with h there; the sweeps do, and the step that announces it (12
+iterations, 487 sweeps) comes before one of 2294 sweeps and 115 s. Both counts make the
+trigger (benchmarks/results/soft_mixture_steps.md): on Newton iterations alone, scenes whose
+iterations are many for other reasons (a strict Newton tolerance, a single particle's unstable
+rotation), and no fewer in smaller steps, ran 1.5–3 times slower; on sweeps alone (500 per
+sub-step), that mixture went down to h / 8 (210 s), its sub-steps needing 500 sweeps now and
+then at any depth, and with 1000 it missed the announcing step (236 s).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from compute.errors import SimulationError, StepFailure
 
 GROW_AFTER = 16  # steps without a new cut before the depth goes down by one
 SLOW_ITERATIONS = 10  # a sub-step with more Newton iterations than this
-SLOW_SWEEPS = 500  # and more contact-solve sweeps than this sends the next ones one level deeper
+SLOW_SWEEPS = 20  # and more contact-solve sweeps per iteration than this sends the next ones deeper
 
 
 def snapshot(state):
@@ -70,7 +73,8 @@ def charge(rep, stats: dict, since: tuple[int, int]) -> None:
 def slow(now: tuple[int, int], iterations: int, sweeps: int) -> bool:
     """Whether a sub-step that ended at ``now`` (:func:`counts`) and began at (``iterations``,
     ``sweeps``) was slow (module docstring)."""
-    return now[0] - iterations > SLOW_ITERATIONS and now[1] - sweeps > SLOW_SWEEPS
+    its = now[0] - iterations
+    return its > SLOW_ITERATIONS and now[1] - sweeps > SLOW_SWEEPS * its
 
 
 def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):

@@ -109,13 +109,16 @@ def _slow_above(h_slow, its, sweeps):
     return lambda h: (its, sweeps) if h > h_slow else (2, 10)
 
 
+SLOW = control.SLOW_ITERATIONS + 1
+
+
 @pytest.mark.parametrize("its, sweeps, deeper", [
-    (control.SLOW_ITERATIONS + 1, control.SLOW_SWEEPS + 1, True),
-    (control.SLOW_ITERATIONS + 1, control.SLOW_SWEEPS, False),  # many iterations, easy contact solves
-    (control.SLOW_ITERATIONS, 10 * control.SLOW_SWEEPS, False),  # few iterations
+    (SLOW, SLOW * control.SLOW_SWEEPS + 1, True),
+    (SLOW, SLOW * control.SLOW_SWEEPS, False),  # many iterations, easy contact solves
+    (SLOW - 1, 100 * SLOW * control.SLOW_SWEEPS, False),  # few iterations
 ])
 def test_a_slow_sub_step_sends_the_next_ones_deeper(its, sweeps, deeper):
-    """Sub-steps above h = 0.3 are slow (both counts above their limits) or not. A slow one is
+    """Sub-steps above h = 0.3 are slow (both counts above their limits, sweeps per iteration) or not. A slow one is
     kept (not taken again): step 1, whole and slow, is done, and step 2 starts at h / 2, is slow
     again and goes on at h / 4, where step 3 stays; time still advances by whole steps, and the
     depth is not a cut."""
@@ -133,7 +136,7 @@ def test_a_slow_sub_step_sends_the_next_ones_deeper(its, sweeps, deeper):
 
 def test_slow_sub_steps_leave_a_level_for_cuts():
     """Depth from slowness stops one level above max_cuts: a failure there can still be cut."""
-    attempt = CostlyAttempt(lambda h: (control.SLOW_ITERATIONS + 1, control.SLOW_SWEEPS + 1))
+    attempt = CostlyAttempt(lambda h: (SLOW, SLOW * control.SLOW_SWEEPS + 1))
     state = State(np.zeros(1), np.zeros(1))
     take(attempt, state, 2, max_cuts=3)
     assert state.cut_depth == 2 and min(a for a in attempt.asked if a != "|") == 0.25
