@@ -1,14 +1,15 @@
 """Run time and memory of one mixture run against the number of disks N.
 
 For each N: the mixture study's pre stage (jamming of N rigid disks, then a fraction κ made soft,
-T3 × 92 per soft disk) into WORKDIR/n<N>/, then its one run with ``python -m compute --resume``
+--element × 92 per soft disk; T6 with its default standard volumetric term) into
+WORKDIR/n<N>_<element>/, then its one run with ``python -m compute --resume``
 as a child process: wall time and peak resident memory of that process (``os.wait4``), steps,
 Newton iterations and, per stage, φ and the step at which it ended. A run interrupted (the
 benchmark killed) resumes from its checkpoint when the benchmark is started again; the wall
 times of the sessions add up. Results are rewritten after every run:
-benchmarks/results/mixture_scaling.{md,json}.
+benchmarks/results/mixture_scaling_<element>.{md,json}.
 
-    python benchmarks/mixture_scaling.py --workdir /tmp/scaling --n 30 144 500 1500
+    python benchmarks/mixture_scaling.py --workdir /tmp/scaling --n 30 144 500 1500 --element T6
 """
 
 from __future__ import annotations
@@ -26,13 +27,13 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
-def prepare(work: Path, n: int, kappa: float, mu: float, p_max: float, stages: int) -> Path:
+def prepare(work: Path, n: int, kappa: float, mu: float, p_max: float, stages: int, element: str) -> Path:
     """The scene of the run (the study's pre stage, once)."""
-    study = work / f"n{n}"
+    study = work / f"n{n}_{element}"
     if not (study / "study.json").is_file():
         subprocess.run([sys.executable, "-m", "studies.mixture_compaction.pre", "--workdir", str(study), "--n", str(n),
                         "--kappa", str(kappa), "--mu", str(mu), "--p-min", "1e-3", "--p-max", str(p_max),
-                        "--stages", str(stages)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+                        "--stages", str(stages), "--element", element], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
     run = json.loads((study / "study.json").read_text())["runs"][0]
     return study / run["scene"], study / run["out"]
 
@@ -66,13 +67,14 @@ def main() -> None:
     ap.add_argument("--mu", type=float, default=0.2)
     ap.add_argument("--p-max", type=float, default=1.0)
     ap.add_argument("--stages", type=int, default=7)
+    ap.add_argument("--element", choices=("T3", "T6"), default="T6")
     a = ap.parse_args()
     work = Path(a.workdir)
     RESULTS.mkdir(exist_ok=True)
-    record_file = RESULTS / "mixture_scaling.json"
+    record_file = RESULTS / f"mixture_scaling_{a.element}.json"
     record = json.loads(record_file.read_text()) if record_file.is_file() else {}
     for n in a.n:
-        scene, out = prepare(work, n, a.kappa, a.mu, a.p_max, a.stages)
+        scene, out = prepare(work, n, a.kappa, a.mu, a.p_max, a.stages, a.element)
         entry = record.setdefault(str(n), {"sessions": []})
         if not (out / "COMPLETE").is_file() and not (out / "INCOMPLETE").is_file():
             entry["sessions"].append(run(scene, out))
@@ -85,9 +87,10 @@ def main() -> None:
 
 
 def _markdown(record: dict, a) -> None:
-    lines = [f"# One mixture run against N (κ = {a.kappa:g}, μ = {a.mu:g}, T3 × 92, P/E = 1e-3 … {a.p_max:g} in "
+    lines = [f"# One mixture run against N (κ = {a.kappa:g}, μ = {a.mu:g}, {a.element} × 92, P/E = 1e-3 … {a.p_max:g} in "
              f"{a.stages} stages, one thread)", "",
-             "`python benchmarks/mixture_scaling.py --workdir W --n " + " ".join(record) + "`: the compute stage as "
+             f"`python benchmarks/mixture_scaling.py --workdir W --element {a.element} --n " + " ".join(record)
+             + "`: the compute stage as "
              "one child process (`python -m compute --resume`), its wall time summed over sessions and its peak "
              "resident memory; pre (jamming) not counted.", "",
              "| N | status | steps | Newton iterations | wall time (s) | s/step | peak memory (MiB) | stage ends (step) |",
@@ -96,7 +99,7 @@ def _markdown(record: dict, a) -> None:
         ends = ", ".join(str(s["step"]) for s in e["stages"])
         lines.append(f"| {n} | {e['status']} | {e['steps']} | {e['newton_iterations']} | {e['seconds']:.0f} | "
                      f"{e['seconds'] / max(e['steps'], 1):.3f} | {e['peak_mib']:.0f} | {ends} |")
-    (RESULTS / "mixture_scaling.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"mixture_scaling_{a.element}.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":
