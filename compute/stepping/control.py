@@ -16,21 +16,22 @@ good steps, hence the slow growth; measured on 30 steps of that mixture: 965 s w
 starting whole, 284 s growing after 4 steps, 140 s after 16 (benchmarks/results/
 soft_mixture_steps.md).
 
-A sub-step that converges but was slow, with more than ``SLOW_ITERATIONS`` Newton iterations
-and more than ``SLOW_SWEEPS`` contact-solve sweeps per iteration, also sends the rest of the
-step, and the next steps, one level deeper (kept one level above ``max_cuts``, so that a failure
-can still be cut); a converged sub-step is not taken again. Why: where a step's contact problems
-are hard, their cost grows much faster than the step's length. Measured on a 500-disk soft
-mixture (κ = 1, μ = 0.2, T6) compacting at P/E = 0.32, the same 5 time units from one
-checkpoint: h = 0.5 in 306 s (per step 12 Newton iterations, 1476 sweeps), h = 0.25 in 70 s
-(6.6, 250), h = 0.125 in 84 s (5.6, 167); φ within 7e-5 of each other. The Newton iterations per
-unit time hardly change with h there; the sweeps do, and the step that announces it (12
-iterations, 487 sweeps) comes before one of 2294 sweeps and 115 s. Both counts make the
-trigger (benchmarks/results/soft_mixture_steps.md): on Newton iterations alone, scenes whose
-iterations are many for other reasons (a strict Newton tolerance, a single particle's unstable
-rotation), and no fewer in smaller steps, ran 1.5–3 times slower; on sweeps alone (500 per
-sub-step), that mixture went down to h / 8 (210 s), its sub-steps needing 500 sweeps now and
-then at any depth, and with 1000 it missed the announcing step (236 s).
+A step that converged but was slow, its accepted sub-steps having taken more than
+``SLOW_ITERATIONS`` Newton iterations each and more than ``SLOW_SWEEPS`` contact-solve sweeps per
+iteration on average, sends the next steps one level deeper (kept one level above ``max_cuts``,
+so that a failure can still be cut). Why: where a step's contact problems are hard, their cost
+grows much faster than the step's length. Measured on a 500-disk soft mixture (κ = 1, μ = 0.2,
+T6) compacting at P/E = 0.32, the same 5 time units from one checkpoint: h = 0.5 in 306 s (per
+step 12 Newton iterations, 1476 sweeps), h = 0.25 in 70 s (6.6, 250), h = 0.125 in 84 s (5.6,
+167); φ within 7e-5 of each other. The Newton iterations per unit time hardly change with h
+there; the sweeps do, and the step that announces it (12 iterations, 487 sweeps) comes before
+one of 2294 sweeps and 115 s. With this rule those 10 steps take 2.6 times less time.
+The thresholds come from the measurements in benchmarks/results/soft_mixture_steps.md: on
+Newton iterations alone, scenes whose iterations are many for other reasons (a strict Newton
+tolerance, a single particle's unstable rotation), and no fewer in smaller steps, ran 1.5–3
+times slower; on sweeps alone the mixture went down to h / 8 and gained less. Judged per
+sub-step, or with 20 sweeps per iteration, one slow quarter among cheap ones (a 30-disk T6
+mixture at P/E = 1: 10.25 iterations and 28 sweeps per iteration) kept it at h / 8, 25 % slower.
 """
 
 from __future__ import annotations
@@ -40,8 +41,8 @@ import copy
 from compute.errors import SimulationError, StepFailure
 
 GROW_AFTER = 16  # steps without a new cut before the depth goes down by one
-SLOW_ITERATIONS = 10  # a sub-step with more Newton iterations than this
-SLOW_SWEEPS = 20  # and more contact-solve sweeps per iteration than this sends the next ones deeper
+SLOW_ITERATIONS = 10  # a step with more Newton iterations per accepted sub-step than this
+SLOW_SWEEPS = 30  # and more contact-solve sweeps per iteration than this sends the next ones deeper
 
 
 def snapshot(state):
@@ -70,11 +71,10 @@ def charge(rep, stats: dict, since: tuple[int, int]) -> None:
     rep.newton_iterations, rep.sweeps = (now - then for now, then in zip(counts(stats), since))
 
 
-def slow(now: tuple[int, int], iterations: int, sweeps: int) -> bool:
-    """Whether a sub-step that ended at ``now`` (:func:`counts`) and began at (``iterations``,
-    ``sweeps``) was slow (module docstring)."""
-    its = now[0] - iterations
-    return its > SLOW_ITERATIONS and now[1] - sweeps > SLOW_SWEEPS * its
+def slow(iterations: int, sweeps: int, sub_steps: int) -> bool:
+    """Whether a step whose ``sub_steps`` accepted sub-steps took ``iterations`` Newton iterations
+    and ``sweeps`` contact sweeps in all was slow (module docstring)."""
+    return iterations > SLOW_ITERATIONS * sub_steps and sweeps > SLOW_SWEEPS * iterations
 
 
 def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
@@ -89,6 +89,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     snap = snapshot(state)
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts, sub_steps = 2**max_cuts, 0, None, 0, 0  # progress in units of h / 2**max_cuts
+    work = [0, 0]  # Newton iterations and sweeps of the accepted sub-steps
     while done < units:
         before = snapshot(state)
         iterations, sweeps = counts(stats)
@@ -96,8 +97,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             rep = attempt(state, h / 2**depth)
             done += units >> depth
             sub_steps += 1
-            if slow(counts(stats), iterations, sweeps) and depth < max_cuts - 1:
-                depth += 1
+            work = [w + now - then for w, now, then in zip(work, counts(stats), (iterations, sweeps))]
         except StepFailure as exc:
             if depth >= max_cuts:
                 restore(state, snap)
@@ -109,6 +109,8 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             depth += 1
     rep.cuts, rep.sub_steps = cuts, sub_steps
     charge(rep, stats, since)
+    if slow(*work, sub_steps) and depth < max_cuts - 1:
+        depth += 1
     state.cut_accepted = 0 if depth > depth0 else state.cut_accepted + 1
     state.cut_depth = depth
     if depth and state.cut_accepted >= GROW_AFTER:

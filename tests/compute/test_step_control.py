@@ -117,26 +117,37 @@ SLOW = control.SLOW_ITERATIONS + 1
     (SLOW, SLOW * control.SLOW_SWEEPS, False),  # many iterations, easy contact solves
     (SLOW - 1, 100 * SLOW * control.SLOW_SWEEPS, False),  # few iterations
 ])
-def test_a_slow_sub_step_sends_the_next_ones_deeper(its, sweeps, deeper):
-    """Sub-steps above h = 0.3 are slow (both counts above their limits, sweeps per iteration) or not. A slow one is
-    kept (not taken again): step 1, whole and slow, is done, and step 2 starts at h / 2, is slow
-    again and goes on at h / 4, where step 3 stays; time still advances by whole steps, and the
-    depth is not a cut."""
+def test_a_slow_step_sends_the_next_ones_deeper(its, sweeps, deeper):
+    """Sub-steps above h = 0.3 are slow (both counts above their limits, sweeps per iteration) or
+    not. A slow step is kept (not taken again) and the next one starts a level deeper: step 1,
+    whole and slow, is done; step 2, two slow halves, sends step 3 to quarters, which are not
+    slow, and it stays there. Time still advances by whole steps, and the depth is not a cut."""
     attempt = CostlyAttempt(_slow_above(0.3, its, sweeps))
     state = State(np.zeros(1), np.zeros(1))
-    reports = take(attempt, state, 3)
+    reports = take(attempt, state, 4)
     steps = [s.split() for s in " ".join(str(a) for a in attempt.asked).split("|")[1:]]
     if deeper:
-        assert steps == [["1.0"], ["0.5", "0.25", "0.25"], ["0.25"] * 4]
-        assert [r.sub_steps for r in reports] == [1, 3, 4] and state.cut_depth == 2
+        assert steps == [["1.0"], ["0.5", "0.5"], ["0.25"] * 4, ["0.25"] * 4]
+        assert [r.sub_steps for r in reports] == [1, 2, 4, 4] and state.cut_depth == 2
     else:
-        assert steps == [["1.0"]] * 3 and state.cut_depth == 0
-    assert all(r.cuts == 0 for r in reports) and state.time == pytest.approx(3.0)
+        assert steps == [["1.0"]] * 4 and state.cut_depth == 0
+    assert all(r.cuts == 0 for r in reports) and state.time == pytest.approx(4.0)
+
+
+def test_slowness_is_judged_over_the_whole_step():
+    """One slow sub-step among cheap ones does not make a slow step: sub-steps of a step at
+    h / 4 cost 2 * SLOW_ITERATIONS iterations (with many sweeps) only in the first quarter."""
+    quarter = iter([(2 * SLOW, 2 * SLOW * (control.SLOW_SWEEPS + 1))] + [(2, 10)] * 3)
+    attempt = CostlyAttempt(lambda h: next(quarter))
+    state = State(np.zeros(1), np.zeros(1))
+    state.cut_depth = 2
+    rep, = take(attempt, state, 1)
+    assert rep.sub_steps == 4 and state.cut_depth == 2
 
 
 def test_slow_sub_steps_leave_a_level_for_cuts():
     """Depth from slowness stops one level above max_cuts: a failure there can still be cut."""
     attempt = CostlyAttempt(lambda h: (SLOW, SLOW * control.SLOW_SWEEPS + 1))
     state = State(np.zeros(1), np.zeros(1))
-    take(attempt, state, 2, max_cuts=3)
+    take(attempt, state, 4, max_cuts=3)
     assert state.cut_depth == 2 and min(a for a in attempt.asked if a != "|") == 0.25
