@@ -39,15 +39,18 @@ def prepare(work: Path, n: int, kappa: float, mu: float, p_max: float, stages: i
 
 
 def run(scene: Path, out: Path) -> dict:
-    """Run (or resume) the scene in a child process: wall seconds, peak RSS in MiB, exit code."""
+    """Run (or resume) the scene in a child process: wall seconds, peak RSS in MiB, exit code, the
+    commit measured and the machine's 1-minute load average when it started."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    load = os.getloadavg()[0]  # what else runs on the machine (timings on a shared machine are upper bounds)
     t0 = time.perf_counter()
     with open(out.parent / "scaling.log", "a") as log:
         proc = subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out), "--resume"],
                                 cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
         _, status, usage = os.wait4(proc.pid, 0)
     return {"seconds": time.perf_counter() - t0, "peak_mib": usage.ru_maxrss / 1024.0,
-            "exit": os.waitstatus_to_exitcode(status)}
+            "exit": os.waitstatus_to_exitcode(status), "commit": commit, "load_at_start": load}
 
 
 def describe(out: Path) -> dict:
@@ -93,12 +96,18 @@ def _markdown(record: dict, a) -> None:
              + "`: the compute stage as "
              "one child process (`python -m compute --resume`), its wall time summed over sessions and its peak "
              "resident memory; pre (jamming) not counted.", "",
-             "| N | status | steps | Newton iterations | wall time (s) | s/step | peak memory (MiB) | stage ends (step) |",
-             "|---|---|---|---|---|---|---|---|"]
+             "Sessions: the commit measured and the machine's 1-minute load average as it started (above 1, other "
+             "work shared the cores and the wall time is an upper bound; not recorded before this column existed).",
+             "",
+             "| N | status | steps | Newton iterations | wall time (s) | s/step | peak memory (MiB) | stage ends (step) "
+             "| sessions |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for n, e in sorted(record.items(), key=lambda kv: int(kv[0])):
         ends = ", ".join(str(s["step"]) for s in e["stages"])
+        sessions = ", ".join(f"{s['commit']} (load {s['load_at_start']:.1f})" if "commit" in s else "not recorded"
+                             for s in e["sessions"])
         lines.append(f"| {n} | {e['status']} | {e['steps']} | {e['newton_iterations']} | {e['seconds']:.0f} | "
-                     f"{e['seconds'] / max(e['steps'], 1):.3f} | {e['peak_mib']:.0f} | {ends} |")
+                     f"{e['seconds'] / max(e['steps'], 1):.3f} | {e['peak_mib']:.0f} | {ends} | {sessions} |")
     (RESULTS / f"mixture_scaling_{a.element}.md").write_text("\n".join(lines) + "\n")
 
 
