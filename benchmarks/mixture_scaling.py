@@ -23,6 +23,8 @@ import sys
 import time
 from pathlib import Path
 
+import checkout
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -42,7 +44,7 @@ def run(scene: Path, out: Path) -> dict:
     """Run (or resume) the scene in a child process: wall seconds, peak RSS in MiB, exit code, the
     commit measured and the machine's 1-minute load average when it started."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    commit = checkout.commit(ROOT)
     load = os.getloadavg()[0]  # what else runs on the machine (timings on a shared machine are upper bounds)
     t0 = time.perf_counter()
     with open(out.parent / "scaling.log", "a") as log:

@@ -26,11 +26,12 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 import argparse  # noqa: E402
 import io  # noqa: E402
 import json  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
+
+import checkout  # noqa: E402
 
 
 def run_folder(scene: Path, out: Path) -> dict:
@@ -78,7 +79,7 @@ def main() -> None:
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     from pre.single_particle import write
 
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    commit = checkout.commit()
     lines = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

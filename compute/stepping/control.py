@@ -8,7 +8,7 @@ rescaled to the full h so that forces = impulse / h stay right in frames and war
 
 The depth is kept between steps (``state.cut_depth``): the next step starts at the depth the
 last one ended with, and the depth goes down by one after ``GROW_AFTER`` steps that went no
-deeper (by a cut or by a slow sub-step, below). Why: in a compacting soft mixture the steps that fail whole come
+deeper (by a cut or after a slow step, below). Why: in a compacting soft mixture the steps that fail whole come
 in runs (a 500-disk mixture at P/E = 0.32: every few steps a whole step fails after its 25
 Newton iterations, some 50 s of a run of 2–10 s steps, while its halves converge); starting
 again from the whole step each time pays that failure again. A failure costs as much as 10–20
@@ -80,8 +80,9 @@ def slow(iterations: int, sweeps: int, sub_steps: int) -> bool:
 def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     """Advance ``state`` by h with ``attempt(state, h) -> StepReport`` (which raises StepFailure)
     in sub-steps h / 2**d, d from ``state.cut_depth``, one level deeper after each failing
-    attempt and after each slow one (the rest of the step goes on at that depth). Raises SimulationError (state
-    restored) when an attempt fails at depth ``max_cuts``. The report is the last sub-step's, with
+    attempt (the rest of the step goes on at that depth); the next step starts one level deeper
+    still if this one was slow. Raises SimulationError (state restored) when an attempt fails at
+    depth ``max_cuts``. The report is the last sub-step's, with
     the Newton iterations and sweeps of all the step's attempts (counted by them in ``stats``), its
     ``cuts`` (failed attempts) and ``sub_steps`` (accepted ones)."""
     t0, s0 = state.time, state.step
@@ -89,15 +90,16 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     snap = snapshot(state)
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts, sub_steps = 2**max_cuts, 0, None, 0, 0  # progress in units of h / 2**max_cuts
-    work = [0, 0]  # Newton iterations and sweeps of the accepted sub-steps
+    iterations = sweeps = 0  # of the accepted sub-steps
     while done < units:
         before = snapshot(state)
-        iterations, sweeps = counts(stats)
+        its0, sweeps0 = counts(stats)
         try:
             rep = attempt(state, h / 2**depth)
             done += units >> depth
             sub_steps += 1
-            work = [w + now - then for w, now, then in zip(work, counts(stats), (iterations, sweeps))]
+            its1, sweeps1 = counts(stats)
+            iterations, sweeps = iterations + its1 - its0, sweeps + sweeps1 - sweeps0
         except StepFailure as exc:
             if depth >= max_cuts:
                 restore(state, snap)
@@ -109,7 +111,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             depth += 1
     rep.cuts, rep.sub_steps = cuts, sub_steps
     charge(rep, stats, since)
-    if slow(*work, sub_steps) and depth < max_cuts - 1:
+    if slow(iterations, sweeps, sub_steps) and depth < max_cuts - 1:
         depth += 1
     state.cut_accepted = 0 if depth > depth0 else state.cut_accepted + 1
     state.cut_depth = depth
