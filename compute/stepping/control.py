@@ -1,7 +1,10 @@
 """Step control: a step of size h is taken in sub-steps h / 2**d; an attempt that fails is
 restarted from its own initial state at d + 1 (a cut), and the rest of the step goes on at that
 depth. An attempt that fails at d = ``max_cuts`` stops the run with a diagnosis, the state left
-as it was before the step.
+as it was before the step. Attempts at d = ``max_cuts`` are told so (``deepest``): a failure that
+only asks for a smaller step (a contact solve that missed its tolerance) is then kept as a miss
+instead, and the step's reported contact residual, the largest of its accepted sub-steps', shows
+it.
 
 A step that needed cuts still advances time by h and counts as one step; its last impulses are
 rescaled to the full h so that forces = impulse / h stay right in frames and warm starts.
@@ -37,6 +40,8 @@ mixture at P/E = 1: 10.25 iterations and 28 sweeps per iteration) kept it at h /
 from __future__ import annotations
 
 import copy
+
+import numpy as np
 
 from compute.errors import SimulationError, StepFailure
 
@@ -78,24 +83,27 @@ def slow(iterations: int, sweeps: int, sub_steps: int) -> bool:
 
 
 def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
-    """Advance ``state`` by h with ``attempt(state, h) -> StepReport`` (which raises StepFailure)
-    in sub-steps h / 2**d, d from ``state.cut_depth``, one level deeper after each failing
-    attempt (the rest of the step goes on at that depth); the next step starts one level deeper
-    still if this one was slow. Raises SimulationError (state restored) when an attempt fails at
-    depth ``max_cuts``. The report is the last sub-step's, with
+    """Advance ``state`` by h with ``attempt(state, h, deepest) -> StepReport`` (which raises
+    StepFailure; ``deepest``: d = ``max_cuts``) in sub-steps h / 2**d, d from ``state.cut_depth``,
+    one level deeper after each failing attempt (the rest of the step goes on at that depth); the
+    next step starts one level deeper still if this one was slow. Raises SimulationError (state
+    restored) when an attempt fails at depth ``max_cuts``. The report is the last sub-step's, with
     the Newton iterations and sweeps of all the step's attempts (counted by them in ``stats``), its
-    ``cuts`` (failed attempts) and ``sub_steps`` (accepted ones)."""
+    ``cuts`` (failed attempts), ``sub_steps`` (accepted ones) and the largest contact
+    ``residual`` of the accepted sub-steps."""
     t0, s0 = state.time, state.step
     since = counts(stats)
     snap = snapshot(state)
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts, sub_steps = 2**max_cuts, 0, None, 0, 0  # progress in units of h / 2**max_cuts
     iterations = sweeps = 0  # of the accepted sub-steps
+    residual = 0.0
     while done < units:
         before = snapshot(state)
         its0, sweeps0 = counts(stats)
         try:
-            rep = attempt(state, h / 2**depth)
+            rep = attempt(state, h / 2**depth, depth >= max_cuts)
+            residual = float(np.maximum(residual, rep.residual))  # NaN stays
             done += units >> depth
             sub_steps += 1
             its1, sweeps1 = counts(stats)
@@ -109,7 +117,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             stats["cuts"] += 1
             cuts += 1
             depth += 1
-    rep.cuts, rep.sub_steps = cuts, sub_steps
+    rep.cuts, rep.sub_steps, rep.residual = cuts, sub_steps, residual
     charge(rep, stats, since)
     if slow(iterations, sweeps, sub_steps) and depth < max_cuts - 1:
         depth += 1

@@ -79,8 +79,8 @@ class Stepper:
         under velocity control, walls moving inward at ``wall_speed``."""
         load = Load(pressure, wall_speed, self.gravity)
         if self.model.nonlinear:
-            rep = control.step_with_cuts(lambda st, h: self._attempt(st, load, h), state, self.h, self.MAX_CUTS,
-                                         self._counts)
+            rep = control.step_with_cuts(lambda st, h, deepest: self._attempt(st, load, h, not deepest), state,
+                                         self.h, self.MAX_CUTS, self._counts)
         else:
             try:
                 rep = self._attempt(state, load, self.h)
@@ -89,7 +89,7 @@ class Stepper:
         self._counts["steps"] += 1
         return rep
 
-    def _attempt(self, state, load: Load, h: float) -> StepReport:
+    def _attempt(self, state, load: Load, h: float, misses_fail: bool = True) -> StepReport:
         m, th = self.model, self.theta
         with TIMES("detection"):
             if detection.needs_detection(m, state):
@@ -99,7 +99,8 @@ class Stepper:
             g.begin_step(state.q, state.v, h, th, load)
         # linear groups only: one contact solve is exact
         tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if m.nonlinear else (np.inf, 1)
-        v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts)
+        v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts,
+                                         misses_fail)
         if not np.all(np.isfinite(v)):
             raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")

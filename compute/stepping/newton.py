@@ -32,7 +32,11 @@ Devices that keep it robust:
 - A contact solve that ends above its tolerance (sweep limit, stall) is a miss; the second miss
   of a step fails it (the step control cuts it, and smaller steps pose easier contact
   problems), rather than paying the sweep limit at every further iteration: a 30-disk mixture
-  step spent 46 s in ten such solves before its cut.
+  step spent 46 s in ten such solves before its cut. At the deepest cut (``misses_fail``
+  false) a miss no longer fails the step: the iteration goes on, and a step that converges with
+  its last contact solve above tolerance is kept and reported with that residual (the run then
+  ends INCOMPLETE, compute.summary). Why: a 500-disk T6 mixture at P/E = 1 stopped on solves
+  ending at 1.17e-4 against 1e-4 after 2000 sweeps, at every depth down to h / 16.
 - Backtracking: an update that would change some element's area by more than a factor
   1 / ``JACOBIAN_RATIO`` in one step is halved until it does not.
 - A correction that contracted by less than ``SLOW_CONTRACTION`` makes the bodies that kept an
@@ -61,10 +65,11 @@ SLOW_CONTRACTION = 0.25
 
 
 def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: float, max_iterations: int,
-               stats: dict):
+               stats: dict, misses_fail: bool = True):
     """End-of-step velocities (n_dofs,) and the last solve report, for the groups of ``model``
     prepared for this step (``begin_step``). ``contacts`` holds the warm start and receives the
-    impulses."""
+    impulses. ``misses_fail``: whether the CONTACT_MISSES-th contact solve above tolerance fails
+    the step (module docstring)."""
     n = model.n_dofs
     diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
     soft_dofs = _contact_dofs(model, contacts)
@@ -107,7 +112,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
         stats["nlgs_sweeps"] += report.iterations
         if model.nonlinear and not report.residual <= solver.tolerance:
             misses += 1
-            if misses == CONTACT_MISSES:
+            if misses_fail and misses == CONTACT_MISSES:
                 raise StepFailure(f"the contact solve missed its tolerance {solver.tolerance:.3g} {misses} times "
                                   f"(natural-map error {report.residual:.3g} after {report.iterations} sweeps, "
                                   f"Newton iteration {it})")

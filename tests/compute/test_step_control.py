@@ -19,7 +19,7 @@ class ScriptedAttempt:
         self.largest, self.asked = largest, []
         self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
 
-    def __call__(self, state, h):
+    def __call__(self, state, h, deepest):
         self.asked.append(h)
         self.stats["newton_iterations"] += 2  # as the Newton loop counts: failing attempts too
         self.stats["nlgs_sweeps"] += 9
@@ -28,7 +28,8 @@ class ScriptedAttempt:
         if h > self.largest(self.step_index) + 1e-15:
             raise StepFailure(f"too large a step (h = {h})")
         impulse = np.full((1, 2), h)  # an impulse proportional to its sub-step
-        return SimpleNamespace(h=h, sweeps=9, newton_iterations=2, cuts=0, contacts=SimpleNamespace(impulse=impulse))
+        return SimpleNamespace(h=h, sweeps=9, residual=1e-9, newton_iterations=2, cuts=0,
+                               contacts=SimpleNamespace(impulse=impulse))
 
 
 def take(attempt, state, steps, h=1.0, max_cuts=4):
@@ -87,6 +88,29 @@ def test_no_cut_helps_restores_the_state():
     assert state.step == 0 and state.time == 0.0 and state.cut_depth == 0
 
 
+def test_only_the_deepest_attempts_are_told_so():
+    """A failure that only asks for a smaller step (a contact solve above its tolerance) fails
+    every attempt above the deepest level; the deepest ones keep it: the step is taken there,
+    and its reported residual is the largest of its sub-steps' (NaN counts as largest)."""
+
+    class Missing(ScriptedAttempt):
+        def __call__(self, state, h, deepest):
+            rep = super().__call__(state, h, deepest)
+            if not deepest:
+                raise StepFailure("the contact solve missed its tolerance 2 times")
+            rep.residual = self.residuals.pop(0)
+            return rep
+
+    for residuals, largest in (([1e-3, 5e-3, 2e-3, 1e-3], 5e-3), ([1e-3, np.nan, 2e-3, 1e-3], np.nan)):
+        attempt = Missing(lambda step: 1.0)
+        attempt.residuals = residuals
+        state = State(np.zeros(1), np.zeros(1))
+        rep, = take(attempt, state, 1, max_cuts=2)
+        assert attempt.asked[1:] == [1.0, 0.5, 0.25, 0.25, 0.25, 0.25]
+        assert rep.cuts == 2 and rep.sub_steps == 4 and state.time == pytest.approx(1.0)
+        np.testing.assert_equal(rep.residual, largest)
+
+
 class CostlyAttempt:
     """Always converges; a sub-step of size h costs ``cost(h)`` = (Newton iterations, sweeps)."""
 
@@ -94,14 +118,14 @@ class CostlyAttempt:
         self.cost, self.asked = cost, []
         self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
 
-    def __call__(self, state, h):
+    def __call__(self, state, h, deepest):
         self.asked.append(h)
         its, sweeps = self.cost(h)
         self.stats["newton_iterations"] += its
         self.stats["nlgs_sweeps"] += sweeps
         state.time += h
         state.step += 1
-        return SimpleNamespace(h=h, sweeps=sweeps, newton_iterations=its, cuts=0,
+        return SimpleNamespace(h=h, sweeps=sweeps, residual=1e-9, newton_iterations=its, cuts=0,
                                contacts=SimpleNamespace(impulse=np.zeros((1, 2))))
 
 
