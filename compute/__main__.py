@@ -1,4 +1,4 @@
-"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait]``: run a scene."""
+"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait] [--checkpoint-minutes M]``: run a scene."""
 
 from __future__ import annotations
 
@@ -17,7 +17,13 @@ def main(argv: list[str] | None = None) -> int:
                    help="if another compute is writing --out, wait for it to finish instead of refusing")
     p.add_argument("--threads", type=int, default=None,
                    help="threads of the parallel kernels (default: NUMBA_NUM_THREADS, else every core)")
+    p.add_argument("--checkpoint-minutes", type=float, default=None, metavar="M",
+                   help="also checkpoint whenever M minutes of wall time have passed since the last checkpoint "
+                        "(the trajectory then depends on when they fell; default: every "
+                        "output.checkpoint_every_steps steps only)")
     a = p.parse_args(argv)
+    if a.checkpoint_minutes is not None and not a.checkpoint_minutes > 0.0:
+        p.error(f"--checkpoint-minutes: expected a positive number of minutes, got {a.checkpoint_minutes}")
     from compute.threads import configure
 
     try:
@@ -27,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     from compute.run import run
 
     try:
-        run(a.scene, a.out, resume=a.resume, wait=a.wait)
+        run(a.scene, a.out, resume=a.resume, wait=a.wait, checkpoint_minutes=a.checkpoint_minutes)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -130,8 +130,10 @@ def _tail(path: Path, lines: int = 15) -> str:
         return ""
 
 
-def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_failed: bool = False) -> dict:
+def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_failed: bool = False,
+                checkpoint_minutes: float | None = None) -> dict:
     """Run one scene in a child process (module docstring); never raises for a failed run.
+    ``checkpoint_minutes``: also checkpoint after that much wall time (compute.run.Run).
 
     Returns the fields of :class:`RunResult` but ``name`` as a dict (plain data for Dask)."""
     scene, out = Path(scene).resolve(), Path(out).resolve()
@@ -148,6 +150,8 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
     cmd = [sys.executable, "-m", "compute.dispatch", str(scene), str(out)]
     if retry_failed:
         cmd.append("--retry-failed")
+    if checkpoint_minutes is not None:
+        cmd += ["--checkpoint-minutes", repr(float(checkpoint_minutes))]
     t0 = time.perf_counter()
     with (out / LOG).open("a") as log:
         log.write(f"=== {time.strftime('%Y-%m-%d %H:%M:%S')} pid {os.getpid()} on {os.uname().nodename}: "
@@ -190,13 +194,15 @@ def local_cluster(n_workers: int = 2, threads_per_worker: int = 1):
 
 def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: int = 2, threads: int = 1,
              retry_failed: bool = False, log: Callable[[str], None] | None = print,
-             log_file: str | Path | None = None, progress: bool | Display = True) -> list[RunResult]:
+             log_file: str | Path | None = None, progress: bool | Display = True,
+             checkpoint_minutes: float | None = None) -> list[RunResult]:
     """Run every run of ``runs`` not yet complete, at most one per worker thread at a time,
     started in the order of ``runs`` (put the longest first).
 
     scheduler: a Dask scheduler address (``tcp://host:8786``); None starts
     :func:`local_cluster` (``n_workers`` workers, one thread each) for the duration of the call.
-    threads: numba/BLAS threads per run. Returns one :class:`RunResult` per run, in the order
+    threads: numba/BLAS threads per run. checkpoint_minutes: each run also checkpoints after that
+    much wall time (compute.run.Run). Returns one :class:`RunResult` per run, in the order
     of ``runs``; also appended to ``log_file`` (JSON lines) when given. ``progress``: show the
     overall progress and each running run's stage (:mod:`compute.progress`: a bar on a terminal,
     a plain line every 30 s otherwise; or the Display given), read from the runs' OUT/progress.json
@@ -246,7 +252,7 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                     while queue and len(running) < slots:
                         spec = queue.pop(0)
                         future = client.submit(execute_run, str(spec.scene), str(spec.out), threads, retry_failed,
-                                               key=f"run-{spec.name}-{time.time_ns()}", pure=False)
+                                               checkpoint_minutes, key=f"run-{spec.name}-{time.time_ns()}", pure=False)
                         running[future] = spec
 
                 fill()
@@ -291,7 +297,8 @@ def _die_with_parent() -> None:
 
 
 def _child(argv: list[str] | None = None) -> int:
-    """``python -m compute.dispatch SCENE OUT [--retry-failed]``: one run, under OUT's lock."""
+    """``python -m compute.dispatch SCENE OUT [--retry-failed] [--checkpoint-minutes M]``: one run,
+    under OUT's lock."""
     import argparse
     import traceback
 
@@ -303,6 +310,7 @@ def _child(argv: list[str] | None = None) -> int:
     p.add_argument("scene")
     p.add_argument("out")
     p.add_argument("--retry-failed", action="store_true")
+    p.add_argument("--checkpoint-minutes", type=float, default=None)
     a = p.parse_args(argv)
     _die_with_parent()
     out = Path(a.out)
@@ -332,7 +340,7 @@ def _child(argv: list[str] | None = None) -> int:
         configure()  # NUMBA_NUM_THREADS (set by execute_run) threads, passive when idle
 
         try:
-            run(a.scene, out, resume=True, log=lambda msg: print(msg, flush=True))
+            run(a.scene, out, resume=True, log=lambda msg: print(msg, flush=True), checkpoint_minutes=a.checkpoint_minutes)
         except InputError as exc:
             (out / "FAILED").write_text(f"input error: {exc}\n")
             print(f"error: {exc}", flush=True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+import time
 import tomllib
 from pathlib import Path
 
@@ -41,8 +42,12 @@ class Run:
     terminal, plain lines otherwise) and to OUT/progress.json."""
 
     def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None,
-                 wait: bool = False, display: Display | None = None):
+                 wait: bool = False, display: Display | None = None, checkpoint_minutes: float | None = None):
+        if checkpoint_minutes is not None and not checkpoint_minutes > 0.0:
+            raise ValueError(f"checkpoint_minutes: expected a positive number of minutes, got {checkpoint_minutes!r}")
         self.scene = read_scene(scene_dir)  # a bad scene stops before anything is written
+        self.checkpoint_seconds = None if checkpoint_minutes is None else 60.0 * checkpoint_minutes
+        self._last_checkpoint = time.monotonic()
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
@@ -186,9 +191,15 @@ class Run:
             self.write_frame(pressure, equilibrated=False)
 
     def _periodic_checkpoint(self) -> None:
-        """A checkpoint every ``checkpoint_every_steps`` steps, taken after the step's equilibrium
-        check (a resumed run does not redo it)."""
-        if self.state.step % self.scene.output.checkpoint_every_steps == 0:
+        """A checkpoint every ``checkpoint_every_steps`` steps, and, when ``checkpoint_minutes`` was
+        given, whenever that much wall time has passed since the last one; taken after the step's
+        equilibrium check (a resumed run does not redo it). Why the wall-time one: a step of a
+        large soft mixture at high pressure can take minutes, and a run stopped between two
+        step-counted checkpoints would lose hours. It is not the default because a checkpoint is
+        a restart point (Stepper.restart_point): the steps after it, and so the trajectory, then
+        depend on when the checkpoints fell."""
+        due = self.checkpoint_seconds is not None and time.monotonic() - self._last_checkpoint >= self.checkpoint_seconds
+        if due or self.state.step % self.scene.output.checkpoint_every_steps == 0:
             self.checkpoint()
 
     def _inertial(self, pressure: float) -> float:
@@ -231,6 +242,7 @@ class Run:
         tmp = path.with_name("state.tmp.npz")
         np.savez(tmp, **self.state.to_arrays())
         os.replace(tmp, path)
+        self._last_checkpoint = time.monotonic()
 
 
 def _changed_keys(a, b, prefix: str = "") -> list[str]:
@@ -251,6 +263,7 @@ def build_model(scene) -> Model:
     return Model(scene)
 
 
-def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None, wait: bool = False) -> State:
+def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None, wait: bool = False,
+        checkpoint_minutes: float | None = None) -> State:
     """Run the scene in ``scene_dir`` and write frames, history and checkpoints in ``out_dir``."""
-    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait).execute()
+    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait, checkpoint_minutes=checkpoint_minutes).execute()

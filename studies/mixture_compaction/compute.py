@@ -23,7 +23,12 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2, help="local cluster: worker processes (default 2)")
     p.add_argument("--threads", type=int, default=1, help="numba/BLAS threads per run (default 1)")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs that have OUT/FAILED")
+    p.add_argument("--checkpoint-minutes", type=float, default=None, metavar="M",
+                   help="each run also checkpoints after M minutes of wall time (long runs resumed in "
+                        "another session lose at most M minutes; default: the scenes' step-counted checkpoints)")
     a = p.parse_args(argv)
+    if a.checkpoint_minutes is not None and not a.checkpoint_minutes > 0.0:
+        p.error(f"--checkpoint-minutes: expected a positive number of minutes, got {a.checkpoint_minutes}")
 
     from compute.dispatch import RunSpec, dispatch
 
@@ -37,7 +42,8 @@ def main(argv=None) -> int:
     specs = [RunSpec(r["name"], w / r["scene"], w / r["out"]) for r in runs]
     t0 = time.perf_counter()
     results = dispatch(specs, scheduler=a.scheduler, n_workers=a.workers, threads=a.threads,
-                       retry_failed=a.retry_failed, log_file=w / "dispatch.jsonl")
+                       retry_failed=a.retry_failed, log_file=w / "dispatch.jsonl",
+                       checkpoint_minutes=a.checkpoint_minutes)
     counts = {}
     for r in results:
         counts[r.status] = counts.get(r.status, 0) + 1

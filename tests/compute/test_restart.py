@@ -161,3 +161,35 @@ def test_resume_after_a_kill_mid_write_removes_the_temporary_files(tmp_path):
     (out / "INCOMPLETE").unlink(missing_ok=True)
     run(scene, out, resume=True, log=lambda m: None)  # a frame-number parse of 'bodies_00099.tmp' failed here
     assert not any(path.exists() for path in stale)
+
+
+def test_wall_time_checkpoints(tmp_path, monkeypatch):
+    """--checkpoint-minutes adds checkpoints by wall time: with a clock that advances one minute
+    per reading and a limit of half a minute, every step checkpoints; without it, only every
+    checkpoint_every_steps (25) steps, at the two stage ends and at the end."""
+    import compute.run as run_module
+    from compute.run import Run
+
+    scene = _scene(tmp_path / "scene")
+    steps = {}
+    for minutes in (None, 0.5):
+        clock = iter(range(0, 10**9, 60))
+        monkeypatch.setattr(run_module.time, "monotonic", lambda: float(next(clock)))
+        r = Run(scene, tmp_path / f"out_{minutes}", log=lambda m: None, checkpoint_minutes=minutes)
+        taken, save = [], r.checkpoint
+        monkeypatch.setattr(r, "checkpoint", lambda: (taken.append(r.state.step), save()))
+        n = r.execute().step
+        steps[minutes] = set(taken)
+    assert steps[0.5] == set(range(1, n + 1))
+    every_25 = set(range(25, n + 1, 25))
+    assert every_25 <= steps[None] and n in steps[None] and len(steps[None] - every_25) <= 2
+
+
+def test_checkpoint_minutes_must_be_positive(tmp_path):
+    from compute.run import Run
+
+    with pytest.raises(ValueError, match="checkpoint_minutes: expected a positive number"):
+        Run(_scene(tmp_path / "scene"), tmp_path / "out", checkpoint_minutes=0.0)
+    cli = subprocess.run([sys.executable, "-m", "compute", str(tmp_path / "scene"), "--out", str(tmp_path / "o"),
+                          "--checkpoint-minutes", "-1"], capture_output=True, text=True)
+    assert cli.returncode == 2 and "--checkpoint-minutes: expected a positive number of minutes" in cli.stderr

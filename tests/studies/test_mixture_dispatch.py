@@ -24,7 +24,7 @@ def test_failure_isolated_and_complete_runs_skipped(tmp_path):
     (bad / "scene.toml").write_text((bad / "scene.toml").read_text().replace("time_step = ", "time_step = -"))
     runs = [RunSpec("bad", bad, tmp_path / "bad" / "out"), RunSpec("good", good, tmp_path / "good" / "out")]
     log = tmp_path / "dispatch.jsonl"
-    results = dispatch(runs, n_workers=2, log=None, log_file=log)
+    results = dispatch(runs, n_workers=2, log=None, log_file=log, checkpoint_minutes=30.0)  # reaches the child
     assert [(r.name, r.status) for r in results] == [("bad", "failed"), ("good", "complete")]
     assert "solver.time_step" in (tmp_path / "bad" / "out" / "FAILED").read_text()
     assert run_status(tmp_path / "good" / "out") == "complete"
