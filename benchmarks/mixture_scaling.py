@@ -40,7 +40,7 @@ def prepare(work: Path, n: int, kappa: float, mu: float, p_max: float, stages: i
     return study / run["scene"], study / run["out"]
 
 
-def run(scene: Path, out: Path) -> dict:
+def run(scene: Path, out: Path, checkpoint_minutes: float | None) -> dict:
     """Run (or resume) the scene in a child process: wall seconds, peak RSS in MiB, exit code, the
     commit measured and the machine's 1-minute load average when it started."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
@@ -48,7 +48,8 @@ def run(scene: Path, out: Path) -> dict:
     load = os.getloadavg()[0]  # what else runs on the machine (timings on a shared machine are upper bounds)
     t0 = time.perf_counter()
     with open(out.parent / "scaling.log", "a") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out), "--resume"],
+        extra = ["--checkpoint-minutes", str(checkpoint_minutes)] if checkpoint_minutes else []
+        proc = subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out), "--resume", *extra],
                                 cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
         _, status, usage = os.wait4(proc.pid, 0)
     return {"seconds": time.perf_counter() - t0, "peak_mib": usage.ru_maxrss / 1024.0,
@@ -73,6 +74,7 @@ def main() -> None:
     ap.add_argument("--p-max", type=float, default=1.0)
     ap.add_argument("--stages", type=int, default=7)
     ap.add_argument("--element", choices=("T3", "T6"), default="T6")
+    ap.add_argument("--checkpoint-minutes", type=float, help="passed to compute (long runs across sessions)")
     a = ap.parse_args()
     work = Path(a.workdir)
     RESULTS.mkdir(exist_ok=True)
@@ -82,7 +84,7 @@ def main() -> None:
         scene, out = prepare(work, n, a.kappa, a.mu, a.p_max, a.stages, a.element)
         entry = record.setdefault(str(n), {"sessions": []})
         if not (out / "COMPLETE").is_file() and not (out / "INCOMPLETE").is_file():
-            entry["sessions"].append(run(scene, out))
+            entry["sessions"].append(run(scene, out, a.checkpoint_minutes))
         entry.update(describe(out), kappa=a.kappa, mu=a.mu, seconds=sum(s["seconds"] for s in entry["sessions"]),
                      peak_mib=max((s["peak_mib"] for s in entry["sessions"]), default=float("nan")))
         record_file.write_text(json.dumps(record, indent=1) + "\n")

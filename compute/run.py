@@ -73,7 +73,7 @@ class Run:
                 state = State.from_arrays(dict(data))
             if state.q.shape != (self.model.n_dofs,):
                 raise OutputFolderError(ckpt, "q", f"the {self.model.n_dofs} dofs of the scene's model", state.q.shape)
-            for name in summary.MARKERS:
+            for name in (*summary.MARKERS, "FAILED"):  # the run goes on: its last end no longer holds
                 (self.out / name).unlink(missing_ok=True)
             rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
             for f, frame in output.frame_files(self.out).items():

@@ -159,8 +159,9 @@ def test_resume_after_a_kill_mid_write_removes_the_temporary_files(tmp_path):
         path.write_text("cut by a kill")
     (out / "COMPLETE").unlink(missing_ok=True)
     (out / "INCOMPLETE").unlink(missing_ok=True)
+    (out / "FAILED").write_text("an earlier failure")  # resumed with a fix: its diagnosis is no longer the run's end
     run(scene, out, resume=True, log=lambda m: None)  # a frame-number parse of 'bodies_00099.tmp' failed here
-    assert not any(path.exists() for path in stale)
+    assert not any(path.exists() for path in stale) and not (out / "FAILED").exists()
 
 
 def test_wall_time_checkpoints(tmp_path, monkeypatch):
