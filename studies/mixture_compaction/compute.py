@@ -26,6 +26,8 @@ def main(argv=None) -> int:
     p.add_argument("--checkpoint-minutes", type=float, default=None, metavar="M",
                    help="each run also checkpoints after M minutes of wall time (long runs resumed in "
                         "another session lose at most M minutes; default: the scenes' step-counted checkpoints)")
+    p.add_argument("--runs", nargs="+", metavar="NAME",
+                   help="only these runs of the study (e.g. k0.5_mu0.2_s1; default: all)")
     a = p.parse_args(argv)
     if a.checkpoint_minutes is not None and not a.checkpoint_minutes > 0.0:
         p.error(f"--checkpoint-minutes: expected a positive number of minutes, got {a.checkpoint_minutes}")
@@ -39,6 +41,12 @@ def main(argv=None) -> int:
     study = json.loads(study_file.read_text())
     # heaviest first (more deformable bodies), so that the last runs to start are the short ones
     runs = sorted(study["runs"], key=lambda r: (-r["kappa"], r["mu"], r["seed"]))
+    if a.runs:
+        unknown = sorted(set(a.runs) - {r["name"] for r in runs})
+        if unknown:
+            p.error(f"--runs: {', '.join(unknown)} not in {study_file} (its runs: "
+                    f"{', '.join(r['name'] for r in runs)})")
+        runs = [r for r in runs if r["name"] in a.runs]
     specs = [RunSpec(r["name"], w / r["scene"], w / r["out"]) for r in runs]
     t0 = time.perf_counter()
     results = dispatch(specs, scheduler=a.scheduler, n_workers=a.workers, threads=a.threads,

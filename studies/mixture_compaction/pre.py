@@ -7,6 +7,11 @@ pressure stages P/E log-spaced from --p-min to --p-max, each equilibrated.
 Writes DIR/study.json (the runs and their parameters), DIR/rigid/mu<μ>_s<seed>/ (the jamming
 runs and the jammed rigid scenes) and DIR/runs/k<κ>_mu<μ>_s<seed>/scene. Reduced units: mean
 diameter 1, density 1, E = 1 (soft disks; rigid ones have E = infinity).
+
+With --add, the (κ, μ, seed) runs not yet in DIR/study.json are added to it: the study's runs
+keep their scenes and outputs (some may be running), a jammed packing of the same (μ, seed) is
+reused, and the study's settings (N, elements, pressures, --set) must be the same. Why: a large
+study is run over several sessions, one or two runs at a time, and analysed as one study.
 """
 
 import argparse
@@ -66,7 +71,11 @@ def main(argv=None) -> int:
                    help="override a scene parameter of the runs, e.g. --set solver.time_step=0.5 (repeatable)")
     p.add_argument("--force", action="store_true",
                    help="delete existing run outputs (DIR/runs/*/out) instead of refusing to overwrite them")
+    p.add_argument("--add", action="store_true",
+                   help="add the runs not yet in DIR/study.json, keeping its runs and their outputs (module docstring)")
     a = p.parse_args(argv)
+    if a.add and a.force:
+        p.error("--add keeps the study's outputs, --force deletes them: give one of them")
 
     from pre.jamming import jammed_rigid_scene
     from post.frames import read_frames_table
@@ -80,33 +89,53 @@ def main(argv=None) -> int:
     if any(x <= 0 for x in pressures) or any(np.diff(pressures) <= 0):
         p.error(f"pressures: expected increasing positive P/E, got {pressures}")
     overrides = parse_set(a.set)
-    existing = sorted((w / "runs").glob("*/out"))
-    if existing and not a.force:
-        p.error(f"{w / 'runs'} already holds run outputs ({existing[0]} ...): use --force to start the study again")
-    for out in existing:
-        shutil.rmtree(out)
-    (w / "post").exists() and a.force and shutil.rmtree(w / "post")
+    settings = {"study": "mixture_compaction", "n": a.n, "element": a.element, "elements": a.elements,
+                "volumetric": neo_hookean_material(a.element, a.volumetric)["volumetric"],
+                "pressures_over_E": [float(x) for x in pressures], "young": 1.0, "poisson": 0.495,
+                "overrides": overrides}
+    if a.add:
+        before = _study_to_extend(p, w / "study.json", settings)
+    else:
+        before = {"jamming": [], "runs": [], "pre_seconds": 0.0}
+        existing = sorted((w / "runs").glob("*/out"))
+        if existing and not a.force:
+            p.error(f"{w / 'runs'} already holds run outputs ({existing[0]} ...): use --force to start the study "
+                    f"again, or --add to add runs to it")
+        for out in existing:
+            shutil.rmtree(out)
+        (w / "post").exists() and a.force and shutil.rmtree(w / "post")
+    kept = {r["name"] for r in before["runs"]}
+    jammed = {(j["mu"], j["seed"]): j for j in before["jamming"]}
 
     runs, jams = [], []
     t_start = time.perf_counter()
     for mu in a.mu:
         for seed in a.seeds:
-            t0 = time.perf_counter()
-            rigid_dir = w / "rigid" / f"mu{mu:g}_s{seed}"
-            # jammed at P = 1 in units of rho <d>^2/t^2 (rigid disks: P only sets the time scale)
-            rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu, seed, [1.0], overrides={"solver.time_step": 0.1},
-                                             log=lambda msg: None)
-            equilibrated = read_frames_table(rigid_dir / "jamming" / "out")[-1].equilibrated
-            jams.append({"mu": mu, "seed": seed, "scene": str(rigid_scene.relative_to(w)), "equilibrated": equilibrated,
-                         "seconds": round(time.perf_counter() - t0, 1)})
-            print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"
-                  f"{'' if equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
+            if all(run_name(kappa, mu, seed) in kept for kappa in a.kappa):
+                continue
+            if (mu, seed) in jammed:
+                rigid_scene = w / jammed[(mu, seed)]["scene"]
+                print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} (the study's)", flush=True)
+            else:
+                t0 = time.perf_counter()
+                rigid_dir = w / "rigid" / f"mu{mu:g}_s{seed}"
+                # jammed at P = 1 in units of rho <d>^2/t^2 (rigid disks: P only sets the time scale)
+                rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu, seed, [1.0],
+                                                 overrides={"solver.time_step": 0.1}, log=lambda msg: None)
+                equilibrated = read_frames_table(rigid_dir / "jamming" / "out")[-1].equilibrated
+                jams.append({"mu": mu, "seed": seed, "scene": str(rigid_scene.relative_to(w)),
+                             "equilibrated": equilibrated, "seconds": round(time.perf_counter() - t0, 1)})
+                print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"
+                      f"{'' if equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
             from compute.scene import read_scene
 
             bounds = read_scene(rigid_scene).walls.bounds
             params = compaction_parameters(bounds, mu, pressures, overrides)
             for kappa in a.kappa:
                 name = run_name(kappa, mu, seed)
+                if name in kept:
+                    print(f"  {name}: already in the study, kept", flush=True)
+                    continue
                 folder, soft = mixture_scene(rigid_scene, w / "runs" / name / "scene", kappa, mu,
                                              np.random.default_rng(seed), element=a.element,
                                              n_elements=a.elements, volumetric=a.volumetric, parameters=params)
@@ -116,14 +145,23 @@ def main(argv=None) -> int:
                              "kappa_actual": round(actual, 6), "scene": str(folder.relative_to(w)),
                              "out": str((w / "runs" / name / "out").relative_to(w))})
                 print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})", flush=True)
-    study = {"study": "mixture_compaction", "n": a.n, "element": a.element, "elements": a.elements,
-             "volumetric": neo_hookean_material(a.element, a.volumetric)["volumetric"],
-             "pressures_over_E": [float(x) for x in pressures], "young": 1.0, "poisson": 0.495,
-             "overrides": overrides, "jamming": jams, "runs": runs,
-             "pre_seconds": round(time.perf_counter() - t_start, 1)}
+    study = {**settings, "jamming": before["jamming"] + jams, "runs": before["runs"] + runs,
+             "pre_seconds": round(before["pre_seconds"] + time.perf_counter() - t_start, 1)}
     (w / "study.json").write_text(json.dumps(study, indent=1) + "\n")
-    print(f"{len(runs)} scenes written; study description {w / 'study.json'}")
+    print(f"{len(runs)} scenes written; study description {w / 'study.json'} ({len(study['runs'])} runs)")
     return 0
+
+
+def _study_to_extend(p, path: Path, settings: dict) -> dict:
+    """The study of ``path`` (--add), after checking that its settings are ``settings``."""
+    if not path.is_file():
+        p.error(f"--add: {path} not found (run pre.py without --add first)")
+    study = json.loads(path.read_text())
+    for key, value in settings.items():
+        if study.get(key) != value:
+            p.error(f"--add: {path}: field '{key}' is {study.get(key)!r}, expected {value!r} as given here "
+                    f"(the runs of one study share their settings)")
+    return study
 
 
 if __name__ == "__main__":

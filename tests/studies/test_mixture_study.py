@@ -130,3 +130,31 @@ def test_killed_study_finishes_only_the_missing_runs(tmp_path):
     assert next(e for e in log if e["name"] == "k0.5_mu0.2_s1")["resumed"]
     rows = list(csv.DictReader(open(second / "frames.csv")))
     assert [r["stage"] for r in rows] == ["0", "1"] and all(r["equilibrated"] == "1" for r in rows)
+
+
+def test_runs_added_to_a_study_keep_the_others(tmp_path):
+    """pre --add adds runs to a study one at a time (a study run over several sessions): the
+    runs already there keep their scenes and outputs, a jammed packing of the same (μ, seed) is
+    reused, different settings are refused naming the field; compute --runs runs only those."""
+    w = tmp_path / "study"
+    script("pre", w, *TINY, "--kappa", "0.5")
+    script("compute", w, "--workers", "1", "--runs", "k0.5_mu0.2_s1")
+    first = w / "runs" / "k0.5_mu0.2_s1"
+    stamps = {f: f.stat().st_mtime_ns for f in (first / "scene" / "scene.toml", first / "out" / "COMPLETE")}
+    jam = w / "rigid" / "mu0.2_s1" / "scene" / "scene.toml"
+    jam_stamp = jam.stat().st_mtime_ns
+
+    bad = subprocess.run([sys.executable, "-m", f"{STUDY}.pre", "--workdir", str(w), *TINY[:-1], "0.003",
+                          "--kappa", "1", "--add"], cwd=ROOT, capture_output=True, text=True)
+    assert bad.returncode == 2 and "field 'pressures_over_E'" in bad.stderr and "study.json" in bad.stderr
+    script("pre", w, *TINY, "--kappa", "0.5", "1", "--add")
+    study = json.loads((w / "study.json").read_text())
+    assert [r["name"] for r in study["runs"]] == ["k0.5_mu0.2_s1", "k1_mu0.2_s1"] and len(study["jamming"]) == 1
+    assert {f: f.stat().st_mtime_ns for f in stamps} == stamps and jam.stat().st_mtime_ns == jam_stamp
+
+    unknown = subprocess.run([sys.executable, "-m", f"{STUDY}.compute", "--workdir", str(w), "--runs", "k2_mu0_s1"],
+                             cwd=ROOT, capture_output=True, text=True)
+    assert unknown.returncode == 2 and "k2_mu0_s1 not in" in unknown.stderr
+    script("compute", w, "--workers", "1", "--runs", "k1_mu0.2_s1")
+    assert (w / "runs" / "k1_mu0.2_s1" / "out" / "COMPLETE").is_file()
+    assert (first / "out" / "COMPLETE").stat().st_mtime_ns == stamps[first / "out" / "COMPLETE"]
