@@ -147,7 +147,9 @@ def law_from_file(path: Path, element: str, elements: int) -> SingleParticleLaw:
 
 def measure_runs(workdir: Path, study: dict, threshold: float = 1e-9, log: Callable[[str], None] = print) -> dict:
     """Write every run's out/post/measures.csv (post.table); return {name: rows} of the runs that
-    have frames. Runs without output, or with unreadable output, are left out (and said so)."""
+    have frames. Runs without output, or with unreadable output, are left out (and said so). A
+    frame whose files are gone keeps its row of the run's earlier measures.csv (a run resumed on
+    another machine from its small files, post.table.measure_output)."""
     from compute.dispatch import run_status
     from post import measures
     from post.errors import OutputError
@@ -160,7 +162,8 @@ def measure_runs(workdir: Path, study: dict, threshold: float = 1e-9, log: Calla
             log(f"  {run['name']}: no output yet, left out")
             continue
         try:
-            rows = measure_output(out, measures.default_min_contacts(run["mu"]), threshold)
+            rows = measure_output(out, measures.default_min_contacts(run["mu"]), threshold,
+                                  kept=out / "post" / "measures.csv")
         except OutputError as exc:
             log(f"  {run['name']}: unreadable output, left out ({exc})")
             continue

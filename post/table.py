@@ -24,13 +24,14 @@ from pathlib import Path
 import numpy as np
 
 from post import measures
-from post.frames import Frame, iter_frames
+from post.frames import Frame, frame_path, read_frame, read_frames_table
 
 COLUMNS = ("frame", "time", "step", "stage", "pressure_applied", "equilibrated", "volume", "phi", "P", "P_walls",
            "P_rel_diff", "q", "sigma_xx", "sigma_yy", "sigma_xy", "Z", "Z_no_rattlers", "Z_bulk", "Z_constraints", "n_contacts",
            "n_wall_contacts", "n_rattlers", "n_particles", "K")
 
 Row = dict[str, float | int | bool]
+_INTEGER_COLUMNS = ("frame", "step", "stage", "n_contacts", "n_wall_contacts", "n_rattlers", "n_particles")
 
 
 def measure_frame(frame: Frame, min_contacts: int = 2, threshold: float = 1e-9) -> Row:
@@ -66,10 +67,25 @@ def measure_frame(frame: Frame, min_contacts: int = 2, threshold: float = 1e-9) 
     }
 
 
-def measure_output(out_dir: str | Path, min_contacts: int = 2, threshold: float = 1e-9) -> list[Row]:
+def measure_output(out_dir: str | Path, min_contacts: int = 2, threshold: float = 1e-9,
+                   kept: str | Path | None = None) -> list[Row]:
     """The table of measures of an output folder, one row (dict keyed by COLUMNS) per frame of
-    frames.csv, in its order. Reads the frames one at a time."""
-    rows = [measure_frame(frame, min_contacts, threshold) for frame in iter_frames(out_dir)]
+    frames.csv, in its order. Reads the frames one at a time.
+
+    ``kept``: an earlier table of the same folder (its measures.csv, made with the same
+    ``min_contacts`` and ``threshold``). A frame whose VTU files are gone is taken from it, if it
+    holds that frame at the same step and time; otherwise the missing file is an error. Why: the
+    small files of a long run (its tables, its checkpoint) are carried from machine to machine to
+    be resumed, and its frames, hundreds of megabytes, are not."""
+    earlier = _rows_by_frame(kept) if kept is not None and Path(kept).is_file() else {}
+    rows = []
+    for record in read_frames_table(out_dir):
+        row = earlier.get(record.frame)
+        gone = not all(frame_path(out_dir, kind, record.frame).is_file() for kind in ("bodies", "contacts", "walls"))
+        if gone and row is not None and (row["step"], row["time"]) == (record.step, record.time):
+            rows.append(row)
+        else:
+            rows.append(measure_frame(read_frame(out_dir, record), min_contacts, threshold))
     equilibrated = [row for row in rows if row["equilibrated"]]
     phi = np.array([row["phi"] for row in equilibrated])
     try:
@@ -99,6 +115,19 @@ def _format(value: float | int | bool) -> str:
     if isinstance(value, (bool, np.bool_, int, np.integer)):
         return str(int(value))
     return repr(float(value))
+
+
+def _rows_by_frame(path: str | Path) -> dict[int, Row]:
+    """The rows of a measures.csv (write_measures) by frame number, typed as measure_frame's."""
+    rows = {}
+    with Path(path).open(newline="") as stream:
+        for raw in csv.DictReader(stream):
+            row: Row = {c: float(raw[c]) for c in COLUMNS}
+            for c in _INTEGER_COLUMNS:
+                row[c] = int(raw[c])
+            row["equilibrated"] = bool(int(raw["equilibrated"]))
+            rows[row["frame"]] = row
+    return rows
 
 
 def read_measures(path: str | Path) -> np.ndarray:

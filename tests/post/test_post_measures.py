@@ -139,3 +139,28 @@ def test_bulk_modulus_of_the_platzer_law():
 
 def test_default_min_contacts():
     assert measures.default_min_contacts(0.2) == 2 and measures.default_min_contacts(0.0) == 3
+
+
+def test_frames_whose_files_are_gone_keep_their_earlier_measures(mixed_lattice):
+    """A run carried without its VTU frames: their rows come from the earlier measures.csv, typed
+    and valued as measured (K recomputed from them); a frame absent from it is still an error."""
+    from post.errors import OutputError
+    from post.frames import frame_path
+    from post.table import write_measures
+
+    measured = measure_output(mixed_lattice)
+    table = write_measures(measured, mixed_lattice / "post" / "measures.csv")
+    for kind in ("bodies", "contacts", "walls"):
+        frame_path(mixed_lattice, kind, 1).unlink()
+    kept = measure_output(mixed_lattice, kept=table)
+    for a, b in zip(measured, kept):
+        assert a.keys() == b.keys()
+        for key in a:
+            assert type(a[key]) is type(b[key]) or isinstance(a[key], float), key
+            np.testing.assert_equal(a[key], b[key])
+    with pytest.raises(OutputError, match="bodies"):
+        measure_output(mixed_lattice)
+    frame_path(mixed_lattice, "bodies", 2).unlink()
+    write_measures(measured[:2], table)
+    with pytest.raises(OutputError, match="bodies"):
+        measure_output(mixed_lattice, kept=table)
