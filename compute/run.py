@@ -6,13 +6,20 @@ A stage ends when, between two checks ``check_every`` steps apart, φ varies by 
 on every wall balances the applied one within that relative tolerance (slow is not static: a
 damped wall can creep while its force is still out of balance). Its last state is written as an
 equilibrated frame.
+
+A run asked to stop (SIGTERM) stops at the end of the step it is computing: it writes a
+checkpoint, then dies by that signal, as a killed run (nothing marked, compute.dispatch resumes
+it), having lost nothing. A second SIGTERM kills it at once. Why: a step of a large soft mixture
+at high pressure takes minutes, and a machine given back at a fixed time should lose none of them.
 """
 
 from __future__ import annotations
 
 import os
 import shutil
+import signal
 import sys
+import threading
 import time
 import tomllib
 from pathlib import Path
@@ -48,6 +55,7 @@ class Run:
         self.scene = read_scene(scene_dir)  # a bad scene stops before anything is written
         self.checkpoint_seconds = None if checkpoint_minutes is None else 60.0 * checkpoint_minutes
         self._last_checkpoint = time.monotonic()
+        self._stop_asked = False
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
@@ -112,6 +120,8 @@ class Run:
         stages = 1 if self.scene.walls.control == "velocity" else len(self.scene.loading.pressures)
         self.progress = RunProgress(self.out, stages, self._display)
         status = "failed"
+        on_main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGTERM, self._ask_stop) if on_main else None
         try:
             if self.scene.walls.control == "velocity":
                 self._velocity_stage()
@@ -131,10 +141,17 @@ class Run:
             self.log(f"run stopped: {failure}")
             raise failure from None
         finally:
+            if on_main:
+                signal.signal(signal.SIGTERM, previous)
             self.progress.finish(status)
             self.history.close()
             output_folder.release(self._lock)
         return self.state
+
+    def _ask_stop(self, signum, frame) -> None:
+        """SIGTERM handler: stop after this step (module docstring); the next SIGTERM kills."""
+        self._stop_asked = True
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
     def _pressure_stage(self, pressure: float) -> None:
         load, st = self.scene.loading, self.state
@@ -192,15 +209,18 @@ class Run:
 
     def _periodic_checkpoint(self) -> None:
         """A checkpoint every ``checkpoint_every_steps`` steps, and, when ``checkpoint_minutes`` was
-        given, whenever that much wall time has passed since the last one; taken after the step's
-        equilibrium check (a resumed run does not redo it). Why the wall-time one: a step of a
-        large soft mixture at high pressure can take minutes, and a run stopped between two
+        given, whenever that much wall time has passed since the last one, and before a stop
+        asked by SIGTERM; taken after the step's equilibrium check (a resumed run does not redo
+        it). Why the wall-time one: a step of a large soft mixture at high pressure can take minutes, and a run stopped between two
         step-counted checkpoints would lose hours. It is not the default because a checkpoint is
         a restart point (Stepper.restart_point): the steps after it, and so the trajectory, then
         depend on when the checkpoints fell."""
         due = self.checkpoint_seconds is not None and time.monotonic() - self._last_checkpoint >= self.checkpoint_seconds
-        if due or self.state.step % self.scene.output.checkpoint_every_steps == 0:
+        if due or self._stop_asked or self.state.step % self.scene.output.checkpoint_every_steps == 0:
             self.checkpoint()
+        if self._stop_asked:
+            self.log(f"stopped by SIGTERM after step {self.state.step}, checkpoint written; resume to go on")
+            os.kill(os.getpid(), signal.SIGTERM)  # the handler is gone: the process dies by SIGTERM
 
     def _inertial(self, pressure: float) -> float:
         m = self.model
