@@ -48,8 +48,9 @@ def run_folder(scene: Path, out: Path) -> dict:
     except SimulationError as exc:
         state, end = run.state, f"failed at step {run.state.step + 1}: {str(exc)[:120]}"
     s = run.stepper.stats
-    return {"steps": state.step, "newton_iterations": s["newton_iterations"], "cuts": s["cuts"],
-            "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6), "end": end}
+    return {"steps": state.step, "newton_iterations": s["newton_iterations"], "contact_sweeps": s["nlgs_sweeps"],
+            "cuts": s["cuts"], "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6),
+            "end": end}
 
 
 def three_disks(folder: Path, h: float, steps: int = 8) -> dict:

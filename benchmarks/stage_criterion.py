@@ -1,5 +1,5 @@
 """Steps per stage against the stage-end test: a scene's whole loading program run with several
-settings of its ``[loading]`` table, against a run with a ten times tighter test.
+settings of its ``[loading]`` table or time steps, against a run with a ten times tighter test.
 
 A stage ends when φ changed by less than ``phi_tolerance`` (relative) between two checks
 ``check_every`` steps apart and the walls' inertial number is below ``inertial_tolerance``
@@ -59,13 +59,16 @@ def run_variant(scene: Path, out: Path) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", type=Path, required=True, help="a scene folder with a pressure-stage program")
-    ap.add_argument("--check-every", type=int, nargs="+", default=[20, 10, 5])
+    ap.add_argument("--check-every", type=int, nargs="*", default=[20, 10, 5])
+    ap.add_argument("--time-step", type=float, nargs="*", default=[],
+                    help="variants with solver.time_step replaced (the stage test unchanged)")
     ap.add_argument("--output", default="stage_criterion")
     a = ap.parse_args()
     value = tomllib.loads((a.scene / "scene.toml").read_text())["loading"]
     variants = {"tight (tolerances / 10)": {"loading.phi_tolerance": value["phi_tolerance"] / 10,
                                             "loading.inertial_tolerance": value["inertial_tolerance"] / 10}}
     variants |= {f"check_every = {c}": {"loading.check_every": c} for c in a.check_every}
+    variants |= {f"h = {h:g}": {"solver.time_step": h} for h in a.time_step}
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
         for i, (name, settings) in enumerate(variants.items()):
@@ -76,7 +79,8 @@ def main() -> None:
     tight = rows[next(iter(variants))]
     lines = [f"# Steps per stage against the stage-end test ({a.scene.parent.name})", "",
              f"`python benchmarks/stage_criterion.py --scene {a.scene} --check-every "
-             f"{' '.join(map(str, a.check_every))} --output {a.output}`; the scene's test: φ change below "
+             f"{' '.join(map(str, a.check_every))} --time-step {' '.join(map(str, a.time_step))} --output {a.output}`; "
+             f"time step h = {tomllib.loads((a.scene / 'scene.toml').read_text())['solver']['time_step']:g} but in the h = variants; the scene's test: φ change below "
              f"{value['phi_tolerance']:g} between checks, inertial number below {value['inertial_tolerance']:g}. "
              "|Δφ| = largest difference of a stage's end φ from the tight run's.", "",
              "| variant | status | steps per stage | steps | seconds | Newton iterations | end φ per stage | \\|Δφ\\| |",
