@@ -24,7 +24,6 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
-import json  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 import tomllib  # noqa: E402
@@ -48,11 +47,13 @@ def run_variant(scene: Path, out: Path) -> dict:
         status = f"failed: {exc}"
     seconds = time.perf_counter() - t0
     last: dict[int, dict] = {}
-    for row in csv.DictReader(open(out / "history.csv")):
-        last[int(row["stage"])] = row
-    summary = json.loads((out / "summary.json").read_text())
-    return {"status": status, "seconds": seconds, "steps": [s["steps"] for s in summary["stages"]],
-            "newton": sum(s["newton_iterations"] for s in summary["stages"]),
+    steps: dict[int, int] = {}
+    newton = 0
+    for row in csv.DictReader(open(out / "history.csv")):  # a failed run has no summary.json
+        stage = int(row["stage"])
+        last[stage], steps[stage] = row, steps.get(stage, 0) + 1
+        newton += int(row["newton_iterations"])
+    return {"status": status, "seconds": seconds, "steps": [steps[k] for k in sorted(steps)], "newton": newton,
             "phi": [float(last[k]["phi"]) for k in sorted(last)]}
 
 
