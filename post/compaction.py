@@ -161,6 +161,9 @@ def measure_runs(workdir: Path, study: dict, threshold: float = 1e-9, log: Calla
         if not (out / "frames.csv").is_file():
             log(f"  {run['name']}: no output yet, left out")
             continue
+        if len((out / "frames.csv").read_text().splitlines()) < 2:  # the header alone: running, no stage ended
+            log(f"  {run['name']}: no frame yet ({run_status(out)}), left out")
+            continue
         try:
             rows = measure_output(out, measures.default_min_contacts(run["mu"]), threshold,
                                   kept=out / "post" / "measures.csv")

@@ -99,3 +99,23 @@ def test_summary_names_the_numbers_and_the_unfinished_runs(study, result):
                                        {"k0.5_s1": "complete", "k1.0_s2": "incomplete"}, {"k1.0_s2": "stage 3"})
     assert "| 0.5 | 0.2 | 2 | 0.812 ± 0.001" in text
     assert "| ξ | 5.10 | 5.1 |" in text and "- k1.0_s2: incomplete (stage 3)" in text
+
+
+def test_measure_runs_says_why_a_run_is_left_out(tmp_path):
+    """A run without output, one whose frames.csv has no frame yet and one with a broken
+    frames.csv are left out, each with its own reason; a run with frames is measured."""
+    from post.compaction import measure_runs
+    from tests.post.synthetic import write_square_lattice
+
+    write_square_lattice(tmp_path / "good")
+    (tmp_path / "early").mkdir()
+    (tmp_path / "early" / "frames.csv").write_text((tmp_path / "good" / "frames.csv").read_text().splitlines()[0] + "\n")
+    (tmp_path / "broken").mkdir()
+    (tmp_path / "broken" / "frames.csv").write_text("frame,time\n0,zero\n")
+    runs = [{"name": name, "mu": 0.2, "out": name} for name in ("good", "missing", "early", "broken")]
+    said = []
+    tables = measure_runs(tmp_path, {"runs": runs}, log=said.append)
+    assert list(tables) == ["good"] and len(tables["good"]) == 2
+    assert any("missing: no output yet" in line for line in said)
+    assert any("early: no frame yet" in line for line in said)
+    assert any("broken: unreadable output" in line for line in said)
