@@ -81,6 +81,15 @@ def test_three_stages_end_to_end(tmp_path):
     fits = list(csv.DictReader(open(w / "post" / "fits.csv")))
     assert {(f["law"], f["parameter"]) for f in fits} >= {("eq5", "phi_max"), ("single_particle (Eq. 2)", "b")}
 
+    # the study carried to another machine without its frames: analysed from the kept measures
+    import shutil
+
+    shutil.rmtree(out / "frames")
+    again = script("post", w)
+    assert "fig1_views.png not redrawn" in again.stdout and (w / "post" / "fig1_views.png").is_file()
+    assert list(csv.DictReader(open(w / "post" / "table1.csv"))) == table1
+    assert list(csv.DictReader(open(out / "post" / "measures.csv"))) == rows
+
 
 def _locked(path: Path) -> bool:
     with path.open("a") as f:
