@@ -21,10 +21,7 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import json  # noqa: E402
-import shutil  # noqa: E402
 import sys  # noqa: E402
-import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -55,16 +52,10 @@ def main() -> None:
     ap.add_argument("--solves", action="store_true", help="record every contact solve (sweeps, error, seconds)")
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
-    from compute.progress import RunProgress
-    from compute.run import Run
     from compute.stepping import load_control
 
     commit = checkout.commit()
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "out"
-        shutil.copytree(a.run.resolve() / "out", out, ignore=shutil.ignore_patterns("frames", ".lock"))
-        (out / "frames").mkdir()
-        run = Run(a.run.resolve() / "scene", out, resume=True, log=lambda msg: None)
+    with checkout.resumed(a.run) as run:
         if a.contact:
             from dataclasses import replace
 
@@ -77,7 +68,6 @@ def main() -> None:
         solver = run.stepper.solver
         if a.solves:
             run.stepper.solver = Recorded(run.stepper.solver, solves)
-        run.progress = RunProgress(out, len(run.scene.loading.pressures), None)
         st, pressures = run.state, run.scene.loading.pressures
         previous = pressures[st.stage - 1] if st.stage else 0.0
         first = st.step
@@ -106,12 +96,7 @@ def main() -> None:
             result["end"] = f"{type(exc).__name__}: {exc}"
         result["seconds"] = round(time.perf_counter() - t0, 2)
         result["steps"] = st.step - first
-        run.history.close()
-    line = json.dumps(result)
-    print(line)
-    if a.json:
-        with open(a.json, "a") as f:
-            f.write(line + "\n")
+    checkout.emit(result, a.json)
 
 
 if __name__ == "__main__":

@@ -29,10 +29,7 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import copy  # noqa: E402
-import json  # noqa: E402
-import shutil  # noqa: E402
 import sys  # noqa: E402
-import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -56,21 +53,13 @@ class FirstProblem:
 
 def first_problem(run_dir: Path):
     """The first contact problem of the next step of the run in ``run_dir``."""
-    from compute.progress import RunProgress
-    from compute.run import Run
     from compute.stepping import load_control
 
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "out"
-        shutil.copytree(run_dir / "out", out, ignore=shutil.ignore_patterns("frames", ".lock"))
-        (out / "frames").mkdir()
-        run = Run(run_dir / "scene", out, resume=True, log=lambda msg: None)
+    with checkout.resumed(run_dir) as run:
         run.stepper.solver = probe = FirstProblem(run.stepper.solver)
-        run.progress = RunProgress(out, len(run.scene.loading.pressures), None)
         st, pressures = run.state, run.scene.loading.pressures
         load_control.controlled_step(run.stepper, st, pressures[st.stage - 1] if st.stage else 0.0,
                                      pressures[st.stage], lambda msg: None)
-        run.history.close()
     return probe.problem
 
 
@@ -157,11 +146,7 @@ def main() -> None:
         for _ in range(a.repeat):
             f()
         result["ms"][name] = round(1e3 * (time.perf_counter() - t) / (a.repeat * per), 3)
-    line = json.dumps(result)
-    print(line)
-    if a.json:
-        with open(a.json, "a") as f:
-            f.write(line + "\n")
+    checkout.emit(result, a.json)
 
 
 if __name__ == "__main__":
