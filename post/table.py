@@ -81,8 +81,8 @@ def measure_output(out_dir: str | Path, min_contacts: int = 2, threshold: float 
     rows = []
     for record in read_frames_table(out_dir):
         row = earlier.get(record.frame)
-        gone = not all(frame_path(out_dir, kind, record.frame).is_file() for kind in ("bodies", "contacts", "walls"))
-        if gone and row is not None and (row["step"], row["time"]) == (record.step, record.time):
+        if row is not None and (row["step"], row["time"]) == (record.step, record.time) and not all(
+                frame_path(out_dir, kind, record.frame).is_file() for kind in ("bodies", "contacts", "walls")):
             rows.append(row)
         else:
             rows.append(measure_frame(read_frame(out_dir, record), min_contacts, threshold))
