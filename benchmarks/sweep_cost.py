@@ -9,10 +9,7 @@ step, and times on it, one thread, ``--repeat`` passes each (per pass, in ms):
 - ``velocities``: the local velocities H_cᵀ v of every contact (what each contact reads);
 - ``local solves``: the exact 2D Signorini–Coulomb solution of every contact;
 - ``updates``: v += M̂⁻¹ H_c Δr_c for every contact with a nonzero impulse (what an active
-  contact writes: a column of its bodies' dense compliance blocks per dof it touches);
-- ``updates, packed``: the same with the velocities of each dense block's dofs kept contiguous
-  (a prototype here, not the solvers' layout): each column update a contiguous axpy instead of
-  a scatter through the block's dof list.
+  contact writes: a column of its bodies' dense compliance blocks per dof it touches).
 
 and reports the problem's size: contacts, active ones, dense blocks and their mean size, the
 bytes of the compliance values. One JSON line (--json appends it to a file).
@@ -86,28 +83,11 @@ def kernels():
         return s
 
     @numba.njit
-    def updates(dof, hn, ht, v, active, diagonal, block, pos, start, dofs, offset, values):
+    def updates(dof, hn, ht, v, active, diagonal, block, start, offset, values):
         for c in active:
-            add_contact_impulse(v, c, 1e-30, 1e-30, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values)
+            add_contact_impulse(v, c, 1e-30, 1e-30, dof, hn, ht, diagonal, block, start, offset, values)
 
-    @numba.njit
-    def updates_packed(dof, hn, ht, v, vp, active, diagonal, block, pos, start, dofs, offset, values):
-        for c in active:
-            for k in range(dof.shape[1]):
-                d = dof[c, k]
-                if d >= 0:
-                    a = hn[c, k] * 1e-30 + ht[c, k] * 1e-30
-                    b = block[d]
-                    if b < 0:
-                        v[d] += diagonal[d] * a
-                    else:
-                        s0 = start[b]
-                        size = start[b + 1] - s0
-                        o = offset[b] + pos[d] * size
-                        for q in range(size):
-                            vp[s0 + q] += values[o + q] * a
-
-    return velocities, local_solves, updates, updates_packed
+    return velocities, local_solves, updates
 
 
 def main() -> None:
@@ -123,23 +103,22 @@ def main() -> None:
 
     p = first_problem(a.run.resolve())
     carr = p.compliance.arrays()
-    v = p.v_free.copy()
+    v = p.free_velocity()
     apply_impulses(p.dof, p.hn, p.ht, p.impulse, v, *carr)
     active = np.flatnonzero(np.any(p.impulse != 0.0, axis=1))
     b = np.random.default_rng(0).normal(size=(len(p.dof), 2))
-    velocities, local_solves, updates, updates_packed = kernels()
-    packed = v[carr[4]]
+    velocities, local_solves, updates = kernels()
     timed = {
         "sweep": (lambda: nlgs_solve(p.dof, p.hn, p.ht, p.W, p.gap_term, p.mu, p.impulse.copy(), v.copy(), *carr,
                                      0.0, a.sweeps, 1.0, 0), a.sweeps),
         "velocities": (lambda: velocities(p.dof, p.hn, p.ht, v), 1),
         "local solves": (lambda: local_solves(p.W, p.mu, b), 1),
         "updates": (lambda: updates(p.dof, p.hn, p.ht, v.copy(), active, *carr), 1),
-        "updates, packed": (lambda: updates_packed(p.dof, p.hn, p.ht, v.copy(), packed.copy(), active, *carr), 1),
     }
     result = {"label": a.label, "commit": checkout.commit(), "contacts": len(p.dof), "active": len(active),
-              "dense_blocks": len(carr[3]) - 1, "mean_block_dofs": round(float(np.diff(carr[3]).mean()), 1),
-              "compliance_MB": round(carr[6].nbytes / 1e6, 1), "ms": {}}
+              "dense_blocks": len(p.compliance.start) - 1,
+              "mean_block_dofs": round(float(np.diff(p.compliance.start).mean()), 1),
+              "compliance_MB": round(p.compliance.values.nbytes / 1e6, 1), "ms": {}}
     for name, (f, per) in timed.items():
         f()  # compile, warm the caches
         t = time.perf_counter()

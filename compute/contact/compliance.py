@@ -1,9 +1,16 @@
-"""The inverse effective mass M̂⁻¹ seen by the contact solver, as a block-diagonal matrix.
+"""The inverse effective mass M̂⁻¹ seen by the contact solver, as a block-diagonal matrix in its
+own packed numbering of the dofs.
 
 Rigid-body and wall dofs are 1x1 blocks (1 / mass, 1 / inertia); a deformable body contributes
 one dense block over its boundary dofs, taken from its factorised effective matrix
 M̂ = M + h²θ² K_t. The contact solver only needs ``v += M̂⁻¹ H Δr`` restricted to dofs that
 contacts touch, which these blocks give exactly.
+
+Packed numbering: the contact solver works on the velocities of these dofs only, numbered dense
+block after dense block, then the 1x1 ones. A dense block's dofs are then consecutive, and adding
+one of its columns to v (what every impulse change of a soft body's contact costs) is a
+contiguous axpy instead of a scatter through a list of dofs: measured 1.46–1.54 times faster
+on a 1500-disk mixture's contact updates, which are most of an NLGS sweep.
 """
 
 from __future__ import annotations
@@ -16,65 +23,81 @@ import numpy as np
 
 @dataclass
 class Compliance:
-    """Block-diagonal M̂⁻¹ over ``n_dofs`` dofs.
+    """Block-diagonal M̂⁻¹ over n packed dofs (module docstring).
 
-    ``diagonal`` (n_dofs,) the 1x1 blocks (0 for dofs in a dense block or not seen by contacts);
-    ``block`` (n_dofs,) dense block of each dof (-1: none), ``pos`` (n_dofs,) its position in
-    the block, ``start`` (n_blocks + 1,) offsets into ``dofs``, ``dofs`` the dofs of every dense
-    block, ``offset`` (n_blocks + 1,) offsets into ``values``, the row-major entries of the
-    (symmetric) blocks.
+    ``order`` (n,) the global dof of each packed dof; ``index`` (n_dofs,) the packed dof of each
+    global dof (-1: not in it); ``diagonal`` (n,) the 1x1 blocks (0 on dense blocks); ``block``
+    (n,) dense block of each packed dof (-1: none); ``start`` (n_blocks + 1,): block b holds the
+    packed dofs start[b] .. start[b + 1] - 1; ``offset`` (n_blocks + 1,) offsets into ``values``,
+    the row-major entries of the (symmetric) blocks.
     """
 
+    order: np.ndarray
+    index: np.ndarray
     diagonal: np.ndarray
     block: np.ndarray
-    pos: np.ndarray
     start: np.ndarray
-    dofs: np.ndarray
     offset: np.ndarray
     values: np.ndarray
 
     @classmethod
     def build(cls, n_dofs: int, diagonals=(), dense=()) -> "Compliance":
         """From 1x1 blocks ``diagonals`` = [(dofs (k,), values (k,))] and dense blocks ``dense`` =
-        [(start (B + 1,), dofs (m,), values)]: per group, block b over dofs[start[b]:start[b+1]]
-        with row-major values (concatenated, sizes (start[b+1] - start[b])**2); empty blocks allowed."""
-        diag = np.zeros(n_dofs)
-        for d, values in diagonals:
-            diag[d] = values
-        block = np.full(n_dofs, -1, np.int64)
-        pos = np.zeros(n_dofs, np.int64)
+        [(start (B + 1,), dofs (m,), values)] over global dofs 0 .. n_dofs - 1: per group, block b
+        over dofs[start[b]:start[b+1]] with row-major values (concatenated, sizes
+        (start[b+1] - start[b])**2); empty blocks allowed. A dof in two blocks is an error."""
         sizes = np.concatenate([np.zeros(0, np.int64)] + [np.diff(st) for st, _, _ in dense])
-        all_dofs = np.concatenate([np.zeros(0, np.int64)] + [np.asarray(d, np.int64) for _, d, _ in dense])
-        values = np.concatenate([np.zeros(0)] + [np.asarray(v, float) for _, _, v in dense])
+        block_dofs = np.concatenate([np.zeros(0, np.int64)] + [np.asarray(d, np.int64) for _, d, _ in dense])
+        single = np.concatenate([np.zeros(0, np.int64)] + [np.asarray(d, np.int64) for d, _ in diagonals])
+        order = np.concatenate([block_dofs, single])
+        index = np.full(n_dofs, -1, np.int64)
+        index[order] = np.arange(order.size)
+        if not np.array_equal(index[order], np.arange(order.size)):
+            raise ValueError("compliance blocks overlap: a dof is in two blocks")
+        diag = np.zeros(order.size)
+        diag[block_dofs.size:] = np.concatenate([np.zeros(0)] + [np.asarray(v, float) for _, v in diagonals])
         start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        block = np.full(order.size, -1, np.int64)
+        block[:block_dofs.size] = np.repeat(np.arange(len(sizes)), sizes)
         offset = np.concatenate([[0], np.cumsum(sizes**2)]).astype(np.int64)
-        block[all_dofs] = np.repeat(np.arange(len(sizes)), sizes)
-        pos[all_dofs] = np.arange(len(all_dofs)) - np.repeat(start[:-1], sizes)
-        return cls(diag, block, pos, start, all_dofs, offset, values)
+        values = np.concatenate([np.zeros(0)] + [np.asarray(v, float) for _, _, v in dense])
+        return cls(order, index, diag, block, start, offset, values)
+
+    def __len__(self) -> int:
+        return self.order.size
 
     def arrays(self) -> tuple:
-        return self.diagonal, self.block, self.pos, self.start, self.dofs, self.offset, self.values
+        """(diagonal, block, start, offset, values): what the kernels take."""
+        return self.diagonal, self.block, self.start, self.offset, self.values
+
+    def packed_rows(self, dof: np.ndarray) -> np.ndarray:
+        """Rows of H over global dofs ``dof`` (nc, m) (-1: none) renumbered to packed dofs; a dof
+        outside the compliance is an error (a contact on a dof without inverse mass)."""
+        packed = np.where(dof >= 0, self.index[np.maximum(dof, 0)], -1)
+        outside = (dof >= 0) & (packed < 0)
+        if outside.any():
+            raise ValueError(f"contact rows touch dofs without a compliance block: {np.unique(dof[outside])[:10]}")
+        return packed
 
 
 @numba.njit(cache=True)
-def add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values):
-    """v += M̂⁻¹ e_d a: the velocity change of a generalised impulse ``a`` on dof ``d`` (column d of
-    a symmetric block, read as its row: contiguous)."""
+def add_compliance(v, d, a, diagonal, block, start, offset, values):
+    """v += M̂⁻¹ e_d a (packed v, d): the velocity change of a generalised impulse ``a`` on dof
+    ``d`` (column d of a symmetric block, read as its row: contiguous, as the block's dofs are)."""
     b = block[d]
     if b < 0:
         v[d] += diagonal[d] * a
         return
     s0 = start[b]
     size = start[b + 1] - s0
-    p = pos[d]
-    o = offset[b] + p * size
+    o = offset[b] + (d - s0) * size
     for q in range(size):
-        v[dofs[s0 + q]] += values[o + q] * a
+        v[s0 + q] += values[o + q] * a
 
 
 @numba.njit(cache=True, inline="always")
-def add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values):
-    """v += M̂⁻¹ H_c (dn, dt): the velocity change of an impulse change (dn, dt) of contact c."""
+def add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, start, offset, values):
+    """v += M̂⁻¹ H_c (dn, dt) (packed): the velocity change of an impulse change (dn, dt) of contact c."""
     for k in range(dof.shape[1]):
         d = dof[c, k]
         if d >= 0:
@@ -82,12 +105,24 @@ def add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, 
             if block[d] < 0:  # 1x1 block, inline
                 v[d] += diagonal[d] * a
             else:
-                add_compliance(v, d, a, diagonal, block, pos, start, dofs, offset, values)
+                add_compliance(v, d, a, diagonal, block, start, offset, values)
+
+
+@numba.njit(cache=True, inline="always")
+def entry(dk, dl, diagonal, block, start, offset, values):
+    """M̂⁻¹[dk, dl] (packed dofs)."""
+    bk = block[dk]
+    if bk < 0:
+        return diagonal[dk] if dk == dl else 0.0
+    if block[dl] != bk:
+        return 0.0
+    s0 = start[bk]
+    return values[offset[bk] + (dk - s0) * (start[bk + 1] - s0) + dl - s0]
 
 
 @numba.njit(cache=True)
-def delassus_blocks(dof, hn, ht, diagonal, block, pos, start, dofs, offset, values, W):
-    """W[c] = H_c^T M̂⁻¹ H_c, the (2, 2) local Delassus block of every contact c."""
+def delassus_blocks(dof, hn, ht, diagonal, block, start, offset, values, W):
+    """W[c] = H_c^T M̂⁻¹ H_c, the (2, 2) local Delassus block of every contact c (packed rows)."""
     nc, m = dof.shape
     for c in range(nc):
         wnn = wnt = wtt = 0.0
@@ -95,18 +130,11 @@ def delassus_blocks(dof, hn, ht, diagonal, block, pos, start, dofs, offset, valu
             dk = dof[c, k]
             if dk < 0:
                 continue
-            bk = block[dk]
-            if bk < 0:  # 1x1 block
-                wnn += hn[c, k] * diagonal[dk] * hn[c, k]
-                wnt += hn[c, k] * diagonal[dk] * ht[c, k]
-                wtt += ht[c, k] * diagonal[dk] * ht[c, k]
-                continue
-            size = start[bk + 1] - start[bk]
             for l in range(m):
                 dl = dof[c, l]
-                if dl < 0 or block[dl] != bk:
+                if dl < 0:
                     continue
-                cij = values[offset[bk] + pos[dk] * size + pos[dl]]
+                cij = entry(dk, dl, diagonal, block, start, offset, values)
                 wnn += hn[c, k] * cij * hn[c, l]
                 wnt += hn[c, k] * cij * ht[c, l]
                 wtt += ht[c, k] * cij * ht[c, l]

@@ -19,13 +19,15 @@ import numpy as np
 
 from compute.contact.compliance import Compliance, delassus_blocks
 from compute.contact.rows import ContactRows, generalised_impulse
+from compute.solvers.residual import natural_map_error
 
 
 @dataclass
 class ContactProblem:
-    """``dof``, ``hn``, ``ht`` (nc, MAX_DOFS) sparse rows of H; ``W`` (nc, 2, 2); ``compliance``;
-    ``v_free`` (n_dofs,); ``gap_term`` (nc,); ``mu`` (nc,); ``impulse`` (nc, 2) the warm start,
-    overwritten with the solution by a solver."""
+    """``dof``, ``hn``, ``ht`` (nc, MAX_DOFS) sparse rows of H over the packed dofs of
+    ``compliance`` (:mod:`compute.contact.compliance`); ``W`` (nc, 2, 2); ``v_free`` (n_dofs,)
+    over all dofs (a caller may update it in place between solves); ``gap_term`` (nc,); ``mu``
+    (nc,); ``impulse`` (nc, 2) the warm start, overwritten with the solution by a solver."""
 
     dof: np.ndarray
     hn: np.ndarray
@@ -43,14 +45,38 @@ class ContactProblem:
         """The problem of ``contacts`` (rows at q_n, impulses = warm start) for velocities v⁻ (n_dofs,)."""
         un_minus = np.sum(contacts.hn * np.where(contacts.dof >= 0, v_minus[contacts.dof], 0.0), axis=1)
         gap_term = (contacts.gap + h * (1.0 - theta) * un_minus) / (h * theta)
-        W = np.empty((len(contacts), 2, 2))
-        delassus_blocks(contacts.dof, contacts.hn, contacts.ht, *compliance.arrays(), W)
-        return cls(contacts.dof, contacts.hn, contacts.ht, W, compliance, v_free, gap_term, contacts.mu,
-                   contacts.impulse)
+        return cls.of_rows(contacts.dof, contacts.hn, contacts.ht, compliance, v_free, gap_term, contacts.mu,
+                           contacts.impulse)
+
+    @classmethod
+    def of_rows(cls, dof, hn, ht, compliance: Compliance, v_free, gap_term, mu, impulse) -> "ContactProblem":
+        """The problem of rows ``dof`` (over global dofs), ``hn``, ``ht`` (nc, m) with the other
+        fields as in the class docstring; W computed."""
+        packed = compliance.packed_rows(dof)
+        W = np.empty((len(gap_term), 2, 2))
+        delassus_blocks(packed, hn, ht, *compliance.arrays(), W)
+        return cls(packed, hn, ht, W, compliance, v_free, gap_term, mu, impulse)
 
     def __len__(self) -> int:
         return len(self.gap_term)
 
+    def free_velocity(self) -> np.ndarray:
+        """v_free on the packed dofs (n,): a solver's starting velocities."""
+        return self.v_free[self.compliance.order]
+
+    def velocities(self, v_packed: np.ndarray) -> np.ndarray:
+        """All velocities (n_dofs,): ``v_packed`` (n,) on the packed dofs, v_free elsewhere."""
+        v = self.v_free.copy()
+        v[self.compliance.order] = v_packed
+        return v
+
+    def error(self, v: np.ndarray) -> float:
+        """Natural-map error (:mod:`compute.solvers.residual`) of the impulses with velocities v (n_dofs,)."""
+        return natural_map_error(self.dof, self.hn, self.ht, self.W, self.gap_term, self.mu, self.impulse,
+                                 v[self.compliance.order])
+
     def generalised_impulse(self, n_dofs: int) -> np.ndarray:
         """H r (n_dofs,) of the current impulses."""
-        return generalised_impulse(self.dof, self.hn, self.ht, self.impulse, n_dofs)
+        hr = np.zeros(n_dofs)
+        hr[self.compliance.order] = generalised_impulse(self.dof, self.hn, self.ht, self.impulse, len(self.compliance))
+        return hr

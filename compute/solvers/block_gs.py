@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from compute.contact.compliance import add_contact_impulse
+from compute.contact.compliance import add_contact_impulse, entry
 from compute.contact.rows import local_velocity
 from compute.solvers import SolveReport
 from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
@@ -59,12 +59,12 @@ class BlockGS:
         carr = problem.compliance.arrays()
         order, bstart = blocks_of(problem.dof, problem.compliance.block)
         wb, woff = block_delassus(order, bstart, problem.dof, problem.hn, problem.ht, *carr)
-        v = problem.v_free.copy()
+        v = problem.free_velocity()
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
         sweeps, error = block_gs_solve(order, bstart, wb, woff, problem.dof, problem.hn, problem.ht, problem.W,
                                        problem.gap_term, problem.mu, problem.impulse, v, *carr, self.tolerance,
                                        self.max_sweeps)
-        return SolveReport(v, sweeps, error)
+        return SolveReport(problem.velocities(v), sweeps, error)
 
 
 def blocks_of(dof: np.ndarray, block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -85,19 +85,7 @@ def blocks_of(dof: np.ndarray, block: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 @numba.njit(cache=True)
-def _entry(dk, dl, diagonal, block, pos, start, offset, values):
-    """M̂⁻¹[dk, dl] of the block-diagonal compliance."""
-    bk = block[dk]
-    if bk < 0:
-        return diagonal[dk] if dk == dl else 0.0
-    if block[dl] != bk:
-        return 0.0
-    size = start[bk + 1] - start[bk]
-    return values[offset[bk] + pos[dk] * size + pos[dl]]
-
-
-@numba.njit(cache=True)
-def block_delassus(order, bstart, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values):
+def block_delassus(order, bstart, dof, hn, ht, diagonal, block, start, offset, values):
     """Dense W_BB of every block, row-major (2k, 2k) with rows n0, t0, n1, t1, ..., concatenated:
     (values, offsets (n_blocks + 1,))."""
     nb = bstart.shape[0] - 1
@@ -123,7 +111,7 @@ def block_delassus(order, bstart, dof, hn, ht, diagonal, block, pos, start, dofs
                         de = dof[d, e]
                         if de < 0:
                             continue
-                        w = _entry(da, de, diagonal, block, pos, start, offset, values)
+                        w = entry(da, de, diagonal, block, start, offset, values)
                         if w != 0.0:
                             nn += hn[c, a] * w * hn[d, e]
                             nt += hn[c, a] * w * ht[d, e]
@@ -264,10 +252,10 @@ def solve_block(W, b, mu, r, tol):
 
 
 @numba.njit(cache=True)
-def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, dofs,
-                   offset, values, tol, max_sweeps):
-    """Solve the contact problem in place (module docstring); v (n_dofs,) includes the warm
-    start impulses. Returns (sweeps, natural-map error)."""
+def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, start, offset,
+                   values, tol, max_sweeps):
+    """Solve the contact problem in place (module docstring); rows over packed dofs, v (n,)
+    packed velocities that include the warm-start impulses. Returns (sweeps, natural-map error)."""
     nb = bstart.shape[0] - 1
     error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
     if error <= tol:
@@ -299,7 +287,7 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                 if dn == 0.0 and dt == 0.0:
                     continue
                 r[c, 0], r[c, 1] = rb[2 * i], rb[2 * i + 1]
-                add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values)
+                add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, start, offset, values)
         error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
         if error <= tol or nb == 1:  # one block: its solve was the whole solve
             return sweep, error

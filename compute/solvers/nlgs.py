@@ -50,12 +50,12 @@ class NLGS:
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
         carr = problem.compliance.arrays()
-        v = problem.v_free.copy()
+        v = problem.free_velocity()
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
         sweeps, residual = nlgs_solve(problem.dof, problem.hn, problem.ht, problem.W, problem.gap_term, problem.mu,
                                       problem.impulse, v, *carr, self.tolerance, self.max_sweeps,
                                       self.relaxation, self.stall_window)
-        return SolveReport(v, sweeps, residual)
+        return SolveReport(problem.velocities(v), sweeps, residual)
 
 
 @numba.njit(cache=True, inline="always")
@@ -83,13 +83,14 @@ def local_signorini_coulomb(wnn, wnt, wtn, wtt, bn, bt, mu):
 
 
 @numba.njit(cache=True)
-def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, dofs, offset, values,
-               tol, max_sweeps, relax, stall_window):
+def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, start, offset, values, tol, max_sweeps,
+               relax, stall_window):
     """Solve the contact problem in place.
 
-    dof, hn, ht (nc, m): rows of H; W (nc, 2, 2); gap_term (nc,) = g̃ / (h θ); mu (nc,);
-    r (nc, 2) impulses (warm start in, solution out); v (n_dofs,) velocities that already
-    include the warm-start impulses (v = v_free + M̂⁻¹ H r). Returns (sweeps, natural-map error
+    dof, hn, ht (nc, m): rows of H over packed dofs; W (nc, 2, 2); gap_term (nc,) = g̃ / (h θ);
+    mu (nc,); r (nc, 2) impulses (warm start in, solution out); v (n,) packed velocities that
+    already include the warm-start impulses (v = v_free + M̂⁻¹ H r); the compliance arrays of
+    :meth:`compute.contact.compliance.Compliance.arrays`. Returns (sweeps, natural-map error
     at the stop); stalled (module docstring) if the error is above tol before max_sweeps.
     """
     best = np.inf  # smallest error of the stall checks
@@ -108,7 +109,7 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
             dn, dt = rn - rn0, rt - rt0
             if dn != 0.0 or dt != 0.0:
                 r[c, 0], r[c, 1] = rn, rt
-                add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, pos, start, dofs, offset, values)
+                add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, start, offset, values)
             num += dn * dn + dt * dt
             den += rn * rn + rt * rt
         change = np.sqrt(num / den) if den > 0.0 else 0.0
@@ -125,10 +126,10 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, pos, start, 
 
 
 @numba.njit(cache=True)
-def apply_impulses(dof, hn, ht, r, v, diagonal, block, pos, start, dofs, offset, values):
+def apply_impulses(dof, hn, ht, r, v, diagonal, block, start, offset, values):
     """v += M̂⁻¹ H r (the warm start): H r gathered per dof first, so that each dof's column of a
     dense block is added once, and contacts without impulse cost nothing."""
     hr = generalised_impulse(dof, hn, ht, r, v.shape[0])
     for d in range(v.shape[0]):
         if hr[d] != 0.0:
-            add_compliance(v, d, hr[d], diagonal, block, pos, start, dofs, offset, values)
+            add_compliance(v, d, hr[d], diagonal, block, start, offset, values)

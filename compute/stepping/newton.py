@@ -54,7 +54,6 @@ from compute.contact.compliance import Compliance
 from compute.contact.problem import ContactProblem
 from compute.errors import StepFailure
 from compute.solvers import SolveReport
-from compute.solvers.residual import natural_map_error
 from compute.timing import TIMES
 
 ANDERSON = 4
@@ -102,8 +101,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
                     y, y_stamp = _compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
                 balance = h * theta * float(np.max(np.abs(v - v_free - y)))
                 if balance <= tol:
-                    contact = natural_map_error(problem.dof, problem.hn, problem.ht, problem.W, problem.gap_term,
-                                                problem.mu, problem.impulse, v)
+                    contact = problem.error(v)
                     if contact <= solver.tolerance:
                         report = SolveReport(v, report.iterations, contact)
                         break

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compute.contact.compliance import Compliance, delassus_blocks
+from compute.contact.compliance import Compliance
 from compute.contact.problem import ContactProblem
 from compute.contact.rows import MAX_DOFS
 
@@ -33,28 +33,26 @@ def random_problem(rng, kind: str, nc: int, friction: float = 0.5) -> ContactPro
         dof[c, :per_row] = rng.choice(n, per_row, replace=False)
         hn[c, :per_row] = rng.normal(size=per_row)
         ht[c, :per_row] = rng.normal(size=per_row)
-    W = np.empty((nc, 2, 2))
-    delassus_blocks(dof, hn, ht, *comp.arrays(), W)
     mu = np.where(rng.random(nc) < 0.2, 0.0, rng.uniform(0.0, friction, nc))
     v0 = rng.normal(size=n)
     gap_term = -np.einsum("ck,ck->c", hn, np.where(dof >= 0, v0[dof], 0.0)) + rng.uniform(0.0, 1.0, nc)
-    return ContactProblem(dof, hn, ht, W, comp, v0 + rng.normal(size=n), gap_term, mu, np.zeros((nc, 2)))
+    return ContactProblem.of_rows(dof, hn, ht, comp, v0 + rng.normal(size=n), gap_term, mu, np.zeros((nc, 2)))
 
 
 def dense_form(p: ContactProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(C (n, n) compliance, H (n, 2 nc) columns n0, t0, n1, t1, ..., W = Hᵀ C H, b = Hᵀ v_free +
-    (gap_term, 0)) of a problem."""
-    n, nc = len(p.v_free), len(p)
+    (gap_term, 0)) of a problem, over its packed dofs."""
+    n, nc = len(p.compliance), len(p)
     C = np.diag(p.compliance.diagonal).astype(float)
-    st, dofs, off, vals = p.compliance.start, p.compliance.dofs, p.compliance.offset, p.compliance.values
+    st, off, vals = p.compliance.start, p.compliance.offset, p.compliance.values
     for k in range(len(st) - 1):
-        d = dofs[st[k]:st[k + 1]]
+        d = np.arange(st[k], st[k + 1])
         C[np.ix_(d, d)] = vals[off[k]:off[k + 1]].reshape(len(d), len(d))
     H = np.zeros((n, 2 * nc))
     for c in range(nc):
         for k in np.flatnonzero(p.dof[c] >= 0):
             H[p.dof[c, k], 2 * c] += p.hn[c, k]
             H[p.dof[c, k], 2 * c + 1] += p.ht[c, k]
-    b = H.T @ p.v_free
+    b = H.T @ p.free_velocity()
     b[0::2] += p.gap_term
     return C, H, H.T @ C @ H, b

@@ -19,7 +19,7 @@ KINDS = ("rigid", "soft", "mixed")
 def error_of(p, r):
     """Natural-map error of impulses r (nc, 2) of problem p."""
     C, H, _, _ = dense_form(p)
-    v = p.v_free + C @ (H @ r.ravel())
+    v = p.free_velocity() + C @ (H @ r.ravel())
     return natural_map_error(p.dof, p.hn, p.ht, p.W, p.gap_term, p.mu, np.ascontiguousarray(r), v)
 
 
