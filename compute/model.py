@@ -25,7 +25,8 @@ class Model:
     per reference mesh and material); ``groups`` all of them in dof order; ``families`` the
     contact families present; ``friction`` (n_mat, n_mat). Soft-node arrays for the contact
     kernels: ``loop_nodes`` (n_b,) boundary loops (global node ids, CCW, body after body) with
-    offsets ``loop_start`` (nd + 1,), ``node_body`` (N,) soft index of each node, ``soft_ids``
+    offsets ``loop_start`` (nd + 1,), ``loop_neighbours`` (N, 2) the previous and next node of
+    each node in its loop (-1 for interior nodes), ``node_body`` (N,) soft index of each node, ``soft_ids``
     (nd,) and ``soft_material`` (nd,) of each soft index.
     """
 
@@ -56,6 +57,7 @@ class Model:
         self.loop_nodes = np.concatenate([np.zeros(0, np.int64)] + [g.loop_nodes for g in self.soft]).astype(np.int64)
         sizes = np.concatenate([np.zeros(0, np.int64)] + [np.diff(g.loop_start) for g in self.soft])
         self.loop_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.loop_neighbours = loop_neighbours(self.loop_nodes, self.loop_start, len(self.node_body))
 
     @staticmethod
     def _soft_groups(scene, dof0: int) -> list[SoftBodies]:
@@ -158,3 +160,15 @@ class Model:
                 for name, value in soft.items():
                     fields[name]["deformable"].update(zip(g.ids.tolist(), value))
         return {"point": point, "cell": cell}
+
+
+def loop_neighbours(loop_nodes: np.ndarray, loop_start: np.ndarray, n_nodes: int) -> np.ndarray:
+    """(n_nodes, 2): the previous and next node of each node of the loops ``loop_nodes`` (offsets
+    ``loop_start``), -1 for nodes in no loop."""
+    i = np.arange(len(loop_nodes))
+    loop = np.repeat(np.arange(len(loop_start) - 1), np.diff(loop_start))
+    first, last = loop_start[loop], loop_start[loop + 1] - 1
+    out = np.full((n_nodes, 2), -1, np.int64)
+    out[loop_nodes, 0] = loop_nodes[np.where(i == first, last, i - 1)]
+    out[loop_nodes, 1] = loop_nodes[np.where(i == last, first, i + 1)]
+    return out

@@ -151,7 +151,7 @@ def _node_segment_candidates(model, q, broad, skin):
 def _node_segment_rows(model, q, pairs, centres):
     c = ContactRows.empty(len(pairs))
     node_segment_rows(pairs, model.soft_nodes(q), model.node_dof0, model.loop_nodes, model.loop_start,
-                      c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
+                      model.loop_neighbours, c.dof, c.hn, c.ht, c.gap, c.normal, c.point)
     return _node_body_pairs(model, c, pairs[:, :2], model.soft_ids[pairs[:, 1]], model.soft_material[pairs[:, 1]],
                             centres)
 
