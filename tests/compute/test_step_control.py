@@ -80,6 +80,30 @@ def test_impulses_are_rescaled_to_the_whole_step():
     np.testing.assert_allclose(rep.contacts.impulse, 1.0)
 
 
+def test_every_sub_step_is_warm_started_with_the_same_forces():
+    """Each attempt stores impulses h x (force 1) as a step does; every attempt, the first
+    sub-step of a step started at a kept depth and those after a cut included, must be
+    warm-started with impulses over its own h (force 1), not over the whole step or over the
+    sub-step that failed."""
+    scripted = ScriptedAttempt(lambda step: 0.25 if step <= 2 else 0.125)
+    seen = []
+
+    def attempt(state, h, deepest):
+        seen.append(state.impulses["f"][0, 0] / h)  # the warm start's force
+        scripted.step_index = attempt.step_index
+        rep = scripted(state, h, deepest)
+        state.impulses = {"f": np.full((1, 2), h)}
+        return rep
+
+    attempt.asked, attempt.stats = scripted.asked, scripted.stats
+    state = State(np.zeros(1), np.zeros(1))
+    state.impulses = {"f": np.full((1, 2), 1.0)}  # over the whole step h = 1
+    take(attempt, state, 4)
+    assert len(seen) == 6 + 4 + 9 + 8  # 1, 0.5 failing then 4 quarters; 4 quarters; 1 quarter failing then 8 eighths; 8
+    np.testing.assert_allclose(seen, 1.0)
+    np.testing.assert_allclose(state.impulses["f"], 1.0)  # over the whole step again
+
+
 def test_no_cut_helps_restores_the_state():
     attempt = ScriptedAttempt(lambda step: 0.01)
     state = State(np.zeros(1), np.zeros(1))
