@@ -106,9 +106,9 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     residual = 0.0
     over = h  # the step length the impulses in state.impulses are over
     while done < units:
-        before, before_over = snapshot(state), over
-        its0, sweeps0 = counts(stats)
         over = _rescale_impulses(state, over, h / 2**depth)
+        before = snapshot(state)  # a failure restores impulses over the failed sub-step: `over`
+        its0, sweeps0 = counts(stats)
         try:
             rep = attempt(state, h / 2**depth, depth >= max_cuts)
             residual = float(np.maximum(residual, rep.residual))  # NaN stays
@@ -122,7 +122,6 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
                 cut = f"; the step failed down to sub-steps h / {2**depth} = {h / 2**depth:.4g} (h = {h:.4g})" if depth else ""
                 raise SimulationError(f"step {s0 + 1}: {exc}{cut}") from None
             restore(state, before)
-            over = before_over
             stats["cuts"] += 1
             cuts += 1
             depth += 1
