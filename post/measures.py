@@ -5,6 +5,13 @@ Definitions (N_p particles, walls are not particles):
 - Packing fraction phi = V_p / V: V_p the sum of the current particle areas (pi r^2 for a rigid
   disk; for a deformable disk the sum of its current element areas, T6 elements with their curved
   edges), V the area of the box bounded by the four walls.
+- Contact packing fraction phi_contact = V_c / V: the same with each deformable disk's area taken
+  inside the polygon of its boundary nodes, the boundary the node-to-segment contacts keep
+  apart. For T3 it is phi. For T6 the polygon runs straight through the midside nodes: at rest it
+  is inscribed in the curved boundary (0.41 % less area for a 40-node boundary), and where two
+  bodies press, their curved edges overlap while their polygons do not. phi counts those overlaps
+  twice and can pass 1 as the voids close; phi_contact cannot (beyond the contact penetrations).
+  The two bracket the discretisation error of the T6 boundary.
 - Active contact: a contact candidate with fn > threshold x mean(fn of the candidates with fn > 0),
   threshold 1e-9 by default. Several candidates between the same two bodies (node-to-segment
   contacts of a deformable body) make one contact: contacts are counted per *pair* of bodies,
@@ -44,16 +51,27 @@ def triangle_areas(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return np.abs(signed_areas(points, cells))
 
 
+def straight_areas(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Areas (n_cells,) of the polygons through all nodes of T3 or T6 triangles (n_cells, 3 | 6) of
+    points (n_points, 2): for T6 the hexagon corner, midside, corner, ... (straight edges through
+    the midside nodes). Summed over a body, the area inside the polygon of its boundary nodes."""
+    ring = points[cells[:, [0, 3, 1, 4, 2, 5]] if cells.shape[1] == 6 else cells]  # (n_cells, k, 2)
+    x, y = ring[..., 0], ring[..., 1]
+    return np.abs(0.5 * np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+
+
 def particle_areas(radius: np.ndarray, rigid: np.ndarray, points: np.ndarray,
-                   meshes: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-    """Current area of each body: pi r^2 for a rigid disk, the sum of its element areas otherwise.
+                   meshes: list[tuple[np.ndarray, np.ndarray]], straight: bool = False) -> np.ndarray:
+    """Current area of each body: pi r^2 for a rigid disk, the sum of its element areas otherwise
+    (``straight``: of its :func:`straight_areas`, the area inside its boundary-node polygon).
 
     radius (N,) nominal radii; rigid (N,) bool; points (n_points, 2); meshes a list of
     (cells (n_cells, 3 | 6), body (n_cells,)). Returns (N,).
     """
+    cell_areas = straight_areas if straight else triangle_areas
     area = np.where(rigid, np.pi * radius**2, 0.0)
     for cells, body in meshes:
-        area += np.bincount(body, weights=triangle_areas(points, cells), minlength=len(radius))
+        area += np.bincount(body, weights=cell_areas(points, cells), minlength=len(radius))
     return area
 
 

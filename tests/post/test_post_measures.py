@@ -36,6 +36,9 @@ def test_mixed_lattice_rattler_and_deformable_bodies(mixed_lattice):
     for row, spacing in zip(rows, (1.0, 0.99, 0.98, 0.97)):
         areas = 14 * np.pi / 4 + 2 * fan_area(0.5, 16, "T6") + np.pi * RATTLER_RADIUS**2
         assert row["phi"] == pytest.approx(areas / (4 * spacing) ** 2, rel=1e-12)
+        straight = 2 * (32 * 0.5 * 0.5**2 * np.sin(2 * np.pi / 32))  # T6 rims: 32-gons through corners and midsides
+        assert row["phi_contact"] == pytest.approx((areas - 2 * fan_area(0.5, 16, "T6") + straight) / (4 * spacing) ** 2,
+                                                   rel=1e-12)
         assert row["P"] == pytest.approx(row["pressure_applied"], rel=1e-12)
         assert row["P_walls"] == pytest.approx(row["pressure_applied"], rel=1e-12)
         assert row["n_rattlers"] == 1 and row["n_particles"] == 17
@@ -76,6 +79,20 @@ def test_disk_meshed_by_hand(sectors):
         area = measures.triangle_areas(points, cells).sum()
         assert area == pytest.approx(fan_area(1.0, sectors, element), rel=1e-13)
         assert abs(area - np.pi) < 25 * sectors**-order
+
+
+@pytest.mark.parametrize("sectors", [6, 24])
+def test_straight_areas_are_the_boundary_node_polygon(sectors):
+    """The polygon through a fan's boundary nodes is the regular polygon inscribed in the circle,
+    with 2 x sectors vertices for T6 (midside nodes on the arcs) and sectors for T3; the straight
+    area of a T6 triangle with a bulging edge leaves its parabolic segment out."""
+    for element, vertices in (("T3", sectors), ("T6", 2 * sectors)):
+        points, cells = disk_fan(np.array([2.0, -1.0]), 1.0, sectors, element)
+        inscribed = vertices * 0.5 * np.sin(2 * np.pi / vertices)
+        assert measures.straight_areas(points, cells).sum() == pytest.approx(inscribed, rel=1e-13)
+    points = np.array([[0, 0], [1, 0], [0, 1], [0.5, -0.3], [0.5, 0.5], [0, 0.5]])
+    np.testing.assert_allclose(measures.straight_areas(points, np.array([[0, 1, 2, 3, 4, 5], [0, 2, 1, 5, 4, 3]])),
+                               0.5 + 0.5 * 0.3, rtol=1e-14)
 
 
 def test_particle_areas_of_rigid_and_deformable_bodies():
@@ -160,6 +177,11 @@ def test_frames_whose_files_are_gone_keep_their_earlier_measures(mixed_lattice):
             np.testing.assert_equal(a[key], b[key])
     with pytest.raises(OutputError, match="bodies"):
         measure_output(mixed_lattice)
+    older = table.read_text().replace(",phi_contact,", ",").splitlines()  # a table from before the column
+    table.write_text("\n".join([older[0]] + [",".join(np.delete(line.split(","), 8)) for line in older[1:]]) + "\n")
+    before = measure_output(mixed_lattice, kept=table)
+    assert np.isnan(before[1]["phi_contact"]) and before[1]["phi"] == measured[1]["phi"]
+    assert before[0]["phi_contact"] == measured[0]["phi_contact"]  # measured again from its frame
     frame_path(mixed_lattice, "bodies", 2).unlink()
     write_measures(measured[:2], table)
     with pytest.raises(OutputError, match="bodies"):

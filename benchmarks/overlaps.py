@@ -1,0 +1,105 @@
+"""How much the soft bodies of a run's checkpoint overlap, and whether contacts see it.
+
+Loads RUN's checkpoint (a copy, as the other benchmarks do) and prints: the packing fraction
+with the bodies' element areas (phi, T6 edges curved) and with the areas inside their
+boundary-node polygons (phi_contact, what node-to-segment contacts keep apart); the rows of each
+contact family (gaps below 0 and below -1e-3, active rows); then every soft boundary node that
+lies inside another soft body's boundary polygon (found by testing all nodes against all nearby
+bodies, independently of the contact lists): how many, the quantiles of their depth, whether a
+node-segment candidate holds each (node, body) pair, and the deepest ones with the gap their row
+reports. Why: to tell a packing fraction above 1 from the curved T6 edges (phi > 1 while
+phi_contact < 1 and the penetrations are small) from contacts that miss overlaps.
+
+    python benchmarks/overlaps.py --run studies/mixture_compaction/results/n1500/runs/k1_mu0.2_s1
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.spatial import cKDTree  # noqa: E402
+
+import checkout  # noqa: E402
+
+
+def loop_areas(x: np.ndarray, loop_nodes: np.ndarray, loop_start: np.ndarray) -> np.ndarray:
+    """Areas (nd,) inside each CCW boundary loop, x (N, 2) node positions (shoelace)."""
+    nxt = np.arange(len(loop_nodes)) + 1
+    nxt[loop_start[1:] - 1] = loop_start[:-1]  # each loop closes on its first node
+    a, b = x[loop_nodes], x[loop_nodes[nxt]]
+    cross = a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]
+    return 0.5 * np.add.reduceat(cross, loop_start[:-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", type=Path, required=True, help="a run folder with scene/ and out/ (with a checkpoint)")
+    ap.add_argument("--top", type=int, default=10, help="deepest nodes to list")
+    a = ap.parse_args()
+    sys.path.insert(0, os.getcwd())  # the checkout being measured
+    from compute.contact import detection
+    from compute.contact.soft_rows import _inside_loop, closest_segment
+
+    with checkout.resumed(a.run) as run:
+        st, m = run.state, run.model
+        x = np.ascontiguousarray(m.soft_nodes(st.q))
+        b = m.bounds(st.q)
+        box = (b[1] - b[0]) * (b[3] - b[2])
+        soft_fe = sum(g.area(st.q) for g in m.soft)
+        soft_polygon = loop_areas(x, m.loop_nodes, m.loop_start).sum()
+        rigid = m.particle_area(st.q) - soft_fe
+        print(f"step {st.step}: phi {(rigid + soft_fe) / box:.6f}, phi_contact {(rigid + soft_polygon) / box:.6f} "
+              f"(soft bodies: element areas {soft_fe:.4f}, boundary polygons {soft_polygon:.4f})")
+        if detection.needs_detection(m, st):
+            detection.detect(m, st)
+        rows = detection.narrow_phase(m, st, branches=False)
+        first = {}
+        k = 0
+        for fam in m.families:
+            n = len(st.pairs[fam.name])
+            first[fam.name] = k
+            g, r = rows.gap[k:k + n], rows.impulse[k:k + n, 0]
+            print(f"{fam.name}: {n} rows, min gap {g.min() if n else 0.0:.3e}, gap < 0: {(g < 0).sum()}, "
+                  f"gap < -1e-3: {(g < -1e-3).sum()}, active: {(r > 0).sum()}")
+            k += n
+        if "node_segment" not in st.pairs:
+            return
+        pairs = st.pairs["node_segment"][:, :2]
+        row_of = {(int(p[0]), int(p[1])): i for i, p in enumerate(pairs)}
+        centres, radii = m.soft_circles(st.q)
+        tree = cKDTree(centres)
+        L, S = m.loop_nodes, m.loop_start
+        found = []  # (node, body, depth)
+        for g in L:
+            for body in tree.query_ball_point(x[g], radii.max()):
+                n_loop = S[body + 1] - S[body]
+                if body == m.node_body[g] or np.sum((x[g] - centres[body]) ** 2) > radii[body] ** 2:
+                    continue
+                if _inside_loop(x[g, 0], x[g, 1], x, L, S[body], n_loop):
+                    d2 = min(closest_segment(x[g, 0], x[g, 1], x, L, S[body], n_loop, s)[1] for s in range(n_loop))
+                    found.append((int(g), int(body), float(np.sqrt(d2))))
+        missed = [f for f in found if (f[0], f[1]) not in row_of]
+        print(f"boundary nodes inside another body: {len(found)}, of which without a node-segment candidate: "
+              f"{len(missed)}")
+        if not found:
+            return
+        depth = np.array([f[2] for f in found])
+        print("depth quantiles 0.5, 0.9, 0.99, 1: " + ", ".join(f"{v:.3g}" for v in np.quantile(depth, [0.5, 0.9, 0.99, 1])))
+        for i in np.argsort(depth)[::-1][:a.top]:
+            g, body, d = found[i]
+            r = row_of.get((g, body))
+            row = (f"row gap {rows.gap[first['node_segment'] + r]:.3e}, impulse "
+                   f"{rows.impulse[first['node_segment'] + r, 0]:.3g}" if r is not None else "no row")
+            print(f"  node {g} of body {m.soft_ids[m.node_body[g]]} inside body {m.soft_ids[body]}: depth {d:.3e}, {row}")
+
+
+if __name__ == "__main__":
+    main()
