@@ -1,5 +1,8 @@
 """Stage 1 of the mixture compaction study (Cárdenas-Barrantes et al. 2021): for each friction μ
-and seed, N polydisperse rigid disks jammed once by the compute stage (pre.jamming); then, for each
+and seed, N polydisperse rigid disks jammed once by the compute stage (pre.jamming), with friction
+μ or, with --jamming-mu, one friction for every run (one packing per seed, compressed with each
+μ; the paper does not say how it prepared its frictionless samples, whose φ₀ are its frictional
+ones within 0.002: study README); then, for each
 mixture ratio κ, a fraction κ of the particle volume replaced by neo-Hookean disks at the same
 positions and sizes (pre.mixture), written as DIR/runs/<name>/scene with the loading program:
 pressure stages P/E log-spaced from --p-min to --p-max, each equilibrated.
@@ -56,6 +59,9 @@ def main(argv=None) -> int:
                    help="mixture ratios: fraction of the particle volume made deformable (default 0.2 0.5 0.8 1)")
     p.add_argument("--mu", type=float, nargs="+", default=DEFAULTS["mu"],
                    help="inter-particle friction coefficients (default 0 0.2); walls are frictionless")
+    p.add_argument("--jamming-mu", type=float, default=None,
+                   help="friction of the rigid disks while they are jammed, for every run (default: each run's "
+                        "own mu); e.g. 0.2 to compress the frictionless runs from the frictional packing")
     p.add_argument("--seeds", type=int, nargs="+", default=DEFAULTS["seeds"], help="random seeds (default 1)")
     p.add_argument("--p-min", type=float, default=DEFAULTS["p_min"], help="first P/E (default 1e-3)")
     p.add_argument("--p-max", type=float, default=DEFAULTS["p_max"], help=f"last P/E (default {DEFAULTS['p_max']})")
@@ -83,8 +89,8 @@ def main(argv=None) -> int:
     from pre.scene import neo_hookean_material
 
     w = Path(a.workdir)
-    if any(k < 0 or k > 1 for k in a.kappa) or any(m < 0 for m in a.mu) or a.n < 2:
-        p.error("expected 0 <= kappa <= 1, mu >= 0 and n >= 2")
+    if any(k < 0 or k > 1 for k in a.kappa) or any(m < 0 for m in [*a.mu, a.jamming_mu or 0.0]) or a.n < 2:
+        p.error("expected 0 <= kappa <= 1, mu >= 0, jamming mu >= 0 and n >= 2")
     pressures = a.pressures or list(np.geomspace(a.p_min, a.p_max, a.stages))
     if any(x <= 0 for x in pressures) or any(np.diff(pressures) <= 0):
         p.error(f"pressures: expected increasing positive P/E, got {pressures}")
@@ -110,22 +116,24 @@ def main(argv=None) -> int:
     runs, jams = [], []
     t_start = time.perf_counter()
     for mu in a.mu:
+        mu_jam = mu if a.jamming_mu is None else a.jamming_mu
         for seed in a.seeds:
             if all(run_name(kappa, mu, seed) in kept for kappa in a.kappa):
                 continue
-            if (mu, seed) in jammed:
-                rigid_scene = w / jammed[(mu, seed)]["scene"]
-                print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} (the study's)", flush=True)
+            if (mu_jam, seed) in jammed:
+                rigid_scene = w / jammed[(mu_jam, seed)]["scene"]
+                print(f"jammed mu = {mu_jam:g}, seed {seed}: {rigid_scene} (the study's)", flush=True)
             else:
                 t0 = time.perf_counter()
-                rigid_dir = w / "rigid" / f"mu{mu:g}_s{seed}"
+                rigid_dir = w / "rigid" / f"mu{mu_jam:g}_s{seed}"
                 # jammed at P = 1 in units of rho <d>^2/t^2 (rigid disks: P only sets the time scale)
-                rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu, seed, [1.0],
+                rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu_jam, seed, [1.0],
                                                  overrides={"solver.time_step": 0.1}, log=lambda msg: None)
                 equilibrated = read_frames_table(rigid_dir / "jamming" / "out")[-1].equilibrated
-                jams.append({"mu": mu, "seed": seed, "scene": str(rigid_scene.relative_to(w)),
-                             "equilibrated": equilibrated, "seconds": round(time.perf_counter() - t0, 1)})
-                print(f"jammed mu = {mu:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"
+                jammed[(mu_jam, seed)] = {"mu": mu_jam, "seed": seed, "scene": str(rigid_scene.relative_to(w)),
+                                          "equilibrated": equilibrated, "seconds": round(time.perf_counter() - t0, 1)}
+                jams.append(jammed[(mu_jam, seed)])
+                print(f"jammed mu = {mu_jam:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"
                       f"{'' if equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
             from compute.scene import read_scene
 
@@ -141,7 +149,8 @@ def main(argv=None) -> int:
                                              n_elements=a.elements, volumetric=a.volumetric, parameters=params)
                 radii = np.asarray(read_scene(folder).radius)
                 actual = float(np.sum(radii[soft] ** 2) / np.sum(radii**2))
-                runs.append({"name": name, "kappa": kappa, "mu": mu, "seed": seed, "n_soft": int(soft.sum()),
+                runs.append({"name": name, "kappa": kappa, "mu": mu, "jamming_mu": mu_jam, "seed": seed,
+                             "n_soft": int(soft.sum()),
                              "kappa_actual": round(actual, 6), "scene": str(folder.relative_to(w)),
                              "out": str((w / "runs" / name / "out").relative_to(w))})
                 print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})", flush=True)

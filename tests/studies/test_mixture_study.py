@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from compute.scene import read_scene
+
 ROOT = Path(__file__).resolve().parents[2]
 STUDY = "studies.mixture_compaction"
 TINY = ["--n", "16", "--mu", "0.2", "--seeds", "1", "--pressures", "0.001", "0.002"]
@@ -167,3 +169,13 @@ def test_runs_added_to_a_study_keep_the_others(tmp_path):
     script("compute", w, "--workers", "1", "--runs", "k1_mu0.2_s1")
     assert (w / "runs" / "k1_mu0.2_s1" / "out" / "COMPLETE").is_file()
     assert (first / "out" / "COMPLETE").stat().st_mtime_ns == stamps[first / "out" / "COMPLETE"]
+
+    # a frictionless run compressed from the frictional packing (--jamming-mu): no new jamming
+    script("pre", w, *TINY, "--kappa", "1", "--mu", "0", "--jamming-mu", "0.2", "--add")
+    study = json.loads((w / "study.json").read_text())
+    added = study["runs"][-1]
+    assert (added["name"], added["mu"], added["jamming_mu"]) == ("k1_mu0_s1", 0.0, 0.2) and len(study["jamming"]) == 1
+    frictional, frictionless = (read_scene(w / "runs" / name / "scene") for name in ("k1_mu0.2_s1", "k1_mu0_s1"))
+    for a, b in zip(frictional.deformable, frictionless.deformable):
+        np.testing.assert_array_equal(a.points, b.points)
+    assert frictional.friction.max() == 0.2 and frictionless.friction.max() == 0.0
