@@ -67,7 +67,8 @@ def single_particle_law(args, study: dict) -> SingleParticleLaw:
             law = compaction.law_from_file(path, study.get("element", "T3"), int(study.get("elements", 92)))
         except ValueError as exc:
             raise SystemExit(str(exc)) from None
-        return SingleParticleLaw(law.b, args.phi_p_max or law.phi_p_max, law.source)
+        source = law.source.replace(f"{REPO}/", "")  # the repository's files by their path in it, not this machine's
+        return SingleParticleLaw(law.b, args.phi_p_max or law.phi_p_max, source)
     return SingleParticleLaw(PAPER.b, phi_p_max, f"PAPER'S VALUE b = {PAPER.b} (no single-particle result found), "
                              "phi_p_max " + (f"{args.phi_p_max} (--phi-p-max)" if args.phi_p_max
                                              else f"= {ASSUMED_PHI_P_MAX} assumed"), paper_default=True)
