@@ -71,11 +71,14 @@ class RunSpec:
 @dataclass
 class RunResult:
     """Outcome of one run (see the module docstring for ``status``); ``wall_time`` in seconds of
-    this dispatch (0 when skipped); ``resumed`` the child started from a checkpoint."""
+    this dispatch (0 when skipped); ``peak_mib`` the peak resident memory of its run process in MiB
+    (0 when skipped; of this dispatch's process only, for a resumed run); ``resumed`` the child
+    started from a checkpoint."""
 
     name: str
     status: str
     wall_time: float = 0.0
+    peak_mib: float = 0.0
     resumed: bool = False
     message: str = ""
 
@@ -157,11 +160,13 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
         log.write(f"=== {time.strftime('%Y-%m-%d %H:%M:%S')} pid {os.getpid()} on {os.uname().nodename}: "
                   f"{'resume' if resumed else 'start'} {scene} -> {out}\n")
         log.flush()
-        code = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL).returncode
-    wall = time.perf_counter() - t0
+        child = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL)
+        _, wait_status, usage = os.wait4(child.pid, 0)
+    code = os.waitstatus_to_exitcode(wait_status)
+    wall, peak = time.perf_counter() - t0, round(usage.ru_maxrss / 1024.0, 1)  # ru_maxrss in KiB on Linux
     if code < 0:
         name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
-        return {"status": "killed", "wall_time": wall, "resumed": resumed,
+        return {"status": "killed", "wall_time": wall, "peak_mib": peak, "resumed": resumed,
                 "message": f"run process killed by {name}; the next dispatch resumes it"}
     status = _CHILD_CODES.get(code, "failed")
     message = ""
@@ -174,7 +179,7 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
     elif status == "complete" and not (out / "COMPLETE").is_file():
         status, message = "failed", "run process exited normally without writing COMPLETE or INCOMPLETE"
         (out / "FAILED").write_text(message + "\n")
-    return {"status": status, "wall_time": wall, "resumed": resumed, "message": message}
+    return {"status": status, "wall_time": wall, "peak_mib": peak, "resumed": resumed, "message": message}
 
 
 def local_cluster(n_workers: int = 2, threads_per_worker: int = 1):

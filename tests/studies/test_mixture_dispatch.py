@@ -29,11 +29,15 @@ def test_failure_isolated_and_complete_runs_skipped(tmp_path):
     assert "solver.time_step" in (tmp_path / "bad" / "out" / "FAILED").read_text()
     assert run_status(tmp_path / "good" / "out") == "complete"
     assert "equilibrated" in (tmp_path / "good" / "out" / "compute.log").read_text()
+    # peak memory of the run process from the kernel: a Python with numpy, scipy and numba loaded
+    # holds well over 60 MiB, a 9-disk run well under 2 GiB
+    assert 60 < results[1].peak_mib < 2048 and results[1].wall_time > 0
 
     again = dispatch(runs, log=None, log_file=log)  # no cluster needed: nothing to run
     assert [(r.name, r.status) for r in again] == [("bad", "failed"), ("good", "skipped")]
     entries = [json.loads(line) for line in log.read_text().splitlines()]
     assert [(e["name"], e["status"]) for e in entries][-2:] == [("bad", "failed"), ("good", "skipped")]
+    assert entries[1]["peak_mib"] == results[1].peak_mib and entries[-1]["peak_mib"] == 0.0
 
 
 def test_names_must_be_unique(tmp_path):
