@@ -58,8 +58,8 @@ class SingleParticleLaw:
 class Group:
     """One (κ, μ): its points pooled over seeds and what was fitted to them.
 
-    phi, P, Z, K (n,): the equilibrated points (P and K over E); phi0, Z0 averaged over the seeds
-    (``*_std``: their scatter, NaN with one seed); platzer, coordination, eq5: post.fits results
+    phi, P, Z, K (n,): the equilibrated points (P and K over E); phi0, Z0 (of the study's Z column)
+    and Z0_no_rattlers averaged over the seeds (``*_std``: their scatter, NaN with one seed); platzer, coordination, eq5: post.fits results
     (None when a fit failed, see Compaction.notes); eq3, eq3_single (n,): the Eq. 3 predictions
     of K/E; errors: the row of errors.csv."""
 
@@ -74,6 +74,8 @@ class Group:
     Z0: float
     phi0_std: float
     Z0_std: float
+    Z0_no_rattlers: float = np.nan
+    Z0_no_rattlers_std: float = np.nan
     xi_alpha: tuple[float, float] = (np.nan, np.nan)
     platzer: fits.FitResult | None = None
     coordination: fits.FitResult | None = None
@@ -99,12 +101,13 @@ class Compaction:
     notes: list[str]
 
     def table1(self, paper_phi0: dict | None = None, paper_Z0: dict | None = None) -> list[dict]:
-        """Rows of table1.csv: φ₀, Z₀ and their seed scatter per (κ, μ), with the paper's values
-        ({μ: {κ: value}}) when given."""
+        """Rows of table1.csv: φ₀, Z₀ (the study's Z column) and Z₀ without rattlers, with their seed
+        scatter, per (κ, μ), with the paper's values ({μ: {κ: value}}) when given."""
         rows = []
         for g in self.groups.values():
             rows.append({"kappa": g.kappa, "mu": g.mu, "phi0": g.phi0, "phi0_std": g.phi0_std, "Z0": g.Z0,
-                         "Z0_std": g.Z0_std, "n_points": len(g.phi), "n_seeds": len(g.seeds),
+                         "Z0_std": g.Z0_std, "Z0_no_rattlers": g.Z0_no_rattlers,
+                         "Z0_no_rattlers_std": g.Z0_no_rattlers_std, "n_points": len(g.phi), "n_seeds": len(g.seeds),
                          "phi0_paper": (paper_phi0 or {}).get(g.mu, {}).get(g.kappa, ""),
                          "Z0_paper": (paper_Z0 or {}).get(g.mu, {}).get(g.kappa, "")})
         return rows
@@ -230,7 +233,8 @@ def _points(study: dict, tables: dict, z_column: str) -> list[dict]:
             points.append({"name": name, "kappa": run["kappa"], "mu": run["mu"], "seed": run["seed"],
                            "stage": int(r["stage"]), "P_over_E": r["P"] / young, "P_walls_over_E": r["P_walls"] / young,
                            "pressure_applied": r["pressure_applied"], "phi": r["phi"], "Z": r[z_column],
-                           "K_over_E": r["K"] / young, "phi0": eq[0]["phi"], "Z0": eq[0][z_column]})
+                           "K_over_E": r["K"] / young, "phi0": eq[0]["phi"], "Z0": eq[0][z_column],
+                           "Z0_no_rattlers": eq[0]["Z_no_rattlers"]})
     return points
 
 
@@ -300,13 +304,16 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
 
 def _group(kappa: float, mu: float, sel: list[dict]) -> Group:
     seeds = sorted({p["seed"] for p in sel})
-    phi0s = np.array([next(p["phi0"] for p in sel if p["seed"] == s) for s in seeds])
-    Z0s = np.array([next(p["Z0"] for p in sel if p["seed"] == s) for s in seeds])
+    def over_seeds(key: str) -> tuple[float, float]:
+        """Mean over the seeds of a run-level value, and its scatter (NaN with one seed)."""
+        x = np.array([next(p[key] for p in sel if p["seed"] == s) for s in seeds])
+        return float(x.mean()), float(x.std(ddof=1)) if len(seeds) > 1 else np.nan
+
+    (phi0, phi0_std), (Z0, Z0_std), (Z0_nr, Z0_nr_std) = (over_seeds(k) for k in ("phi0", "Z0", "Z0_no_rattlers"))
     return Group(kappa, mu, seeds, phi=np.array([p["phi"] for p in sel]), P=np.array([p["P_over_E"] for p in sel]),
                  Z=np.array([p["Z"] for p in sel]), K=np.array([p["K_over_E"] for p in sel]),
-                 phi0=float(phi0s.mean()), Z0=float(Z0s.mean()),
-                 phi0_std=float(phi0s.std(ddof=1)) if len(seeds) > 1 else np.nan,
-                 Z0_std=float(Z0s.std(ddof=1)) if len(seeds) > 1 else np.nan)
+                 phi0=phi0, Z0=Z0, phi0_std=phi0_std, Z0_std=Z0_std, Z0_no_rattlers=Z0_nr,
+                 Z0_no_rattlers_std=Z0_nr_std)
 
 
 def _errors_and_eq3(g: Group, law: SingleParticleLaw) -> None:
@@ -371,10 +378,10 @@ def summary_markdown(study: dict, result: Compaction, reference: Reference, time
     lines = [f"# Mixture compaction: N = {study['n']}, {study['element']} x {study['elements']} elements, "
              f"P/E = {', '.join(f'{p:.3g}' for p in study['pressures_over_E'])}", "",
              f"Z column: `{result.z_column}`. b = {law.b:.4g}, phi_p,max = {law.phi_p_max:.4g} from: {law.source}.", ""]
-    lines += ["| κ | μ | seeds | φ₀ ± seed std (paper) | Z₀ ± seed std (paper) | ξ, α (group) | φ_max Eq. 5 (± seed std) | "
-              "φ_max Platzer (± seed std) | P₀/E | Eq. 5 err φ rms / max | Platzer err φ rms / max | "
-              "Eq. 3 err K rms (φ_max(κ) / φ_p,max) | run time s |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += ["| κ | μ | seeds | φ₀ ± seed std (paper) | Z₀ ± seed std (paper) | Z₀ without rattlers | ξ, α (group) | "
+              "φ_max Eq. 5 (± seed std) | φ_max Platzer (± seed std) | P₀/E | Eq. 5 err φ rms / max | "
+              "Platzer err φ rms / max | Eq. 3 err K rms (φ_max(κ) / φ_p,max) | run time s |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def pm(value, digits):
         return f" ± {value:.{digits}f}" if math.isfinite(value) else ""
@@ -387,6 +394,7 @@ def summary_markdown(study: dict, result: Compaction, reference: Reference, time
             f"| {kappa:g} | {mu:g} | {len(g.seeds)} | {g.phi0:.3f}{pm(g.phi0_std, 3)} "
             f"({reference.phi0.get(mu, {}).get(kappa, '–')}) | "
             f"{g.Z0:.2f}{pm(g.Z0_std, 2)} ({reference.Z0.get(mu, {}).get(kappa, '–')}) | "
+            f"{g.Z0_no_rattlers:.2f}{pm(g.Z0_no_rattlers_std, 2)} | "
             + (f"{co.params['xi']:.2f}, {co.params['alpha']:.2f}" if co else "–") + " | "
             + (f"{e5.params['phi_max']:.4f}{pm(g.phi_max_seed_std.get('eq5', np.nan), 3)}" if e5 else "–") + " | "
             + (f"{pl.params['phi_max']:.4f}{pm(g.phi_max_seed_std.get('platzer', np.nan), 3)}" if pl else "–")

@@ -25,8 +25,8 @@ def _rows(kappa: float, seed: int) -> list[dict]:
     P = np.concatenate([[1e-6], models.eq5_pressure(phi[1:], PHI_MAX[kappa], B, XI, ALPHA, Z0, phi0)])
     Z = models.coordination_law(phi, XI, ALPHA, phi0, Z0)
     K = phi * np.gradient(P, phi)
-    return [{"stage": k, "equilibrated": True, "phi": f, "P": p, "P_walls": p, "pressure_applied": p, "Z": z, "K": kk}
-            for k, (f, p, z, kk) in enumerate(zip(phi, P, Z, K))]
+    return [{"stage": k, "equilibrated": True, "phi": f, "P": p, "P_walls": p, "pressure_applied": p, "Z": z, "K": kk,
+             "Z_no_rattlers": z + 0.1 * seed} for k, (f, p, z, kk) in enumerate(zip(phi, P, Z, K))]
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +58,9 @@ def test_table1_and_fit_rows(result):
     rows = {(r["kappa"], r["mu"]): r for r in result.table1({0.2: {0.5: 0.811}}, {0.2: {0.5: 3.7}})}
     assert rows[(0.5, 0.2)]["phi0_paper"] == 0.811 and rows[(1.0, 0.2)]["phi0_paper"] == ""
     assert rows[(0.5, 0.2)]["n_seeds"] == 2 and rows[(0.5, 0.2)]["n_points"] == 18
+    # Z0 without rattlers is its own column, averaged over the seeds: Z0 + 0.1 and Z0 + 0.2 here
+    assert rows[(0.5, 0.2)]["Z0_no_rattlers"] == pytest.approx(Z0 + 0.15)
+    assert rows[(0.5, 0.2)]["Z0_no_rattlers_std"] == pytest.approx(0.1 / np.sqrt(2))
     laws = {(r["law"], r["kappa"], r["parameter"]) for r in result.fit_rows}
     assert ("eq5", 0.5, "phi_max") in laws and ("coordination", "all", "xi") in laws
     assert ("single_particle (Eq. 2)", "all", "b") in laws
