@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from compute.contact.rows import ContactRows
+from compute.bodies_io import VTU_COMPRESSION
 from compute.errors import OutputFolderError
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
@@ -28,7 +29,7 @@ def _atomic_write_mesh(path: Path, mesh) -> None:
     import meshio
 
     tmp = path.with_name(path.stem + ".tmp.vtu")
-    meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=None)
+    meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=VTU_COMPRESSION)
     os.replace(tmp, path)
 
 
