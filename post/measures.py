@@ -10,8 +10,9 @@ Definitions (N_p particles, walls are not particles):
   apart. For T3 it is phi. For T6 the polygon runs straight through the midside nodes: at rest it
   is inscribed in the curved boundary (0.41 % less area for a 40-node boundary), and where two
   bodies press, their curved edges overlap while their polygons do not. phi counts those overlaps
-  twice and can pass 1 as the voids close; phi_contact cannot (beyond the contact penetrations).
-  The two bracket the discretisation error of the T6 boundary.
+  twice and can pass 1 as the voids close. phi_contact does not count them; it still counts the
+  overlaps the contacts leave (node penetrations, a rigid disk's arc between two soft nodes on
+  it), so it too can pass 1 (a T3 mixture at P/E = 1: 1.0046).
 - Active contact: a contact candidate with fn > threshold x mean(fn of the candidates with fn > 0),
   threshold 1e-9 by default. Several candidates between the same two bodies (node-to-segment
   contacts of a deformable body) make one contact: contacts are counted per *pair* of bodies,
