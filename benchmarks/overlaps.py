@@ -30,15 +30,6 @@ from scipy.spatial import cKDTree  # noqa: E402
 import checkout  # noqa: E402
 
 
-def loop_areas(x: np.ndarray, loop_nodes: np.ndarray, loop_start: np.ndarray) -> np.ndarray:
-    """Areas (nd,) inside each CCW boundary loop, x (N, 2) node positions (shoelace)."""
-    nxt = np.arange(len(loop_nodes)) + 1
-    nxt[loop_start[1:] - 1] = loop_start[:-1]  # each loop closes on its first node
-    a, b = x[loop_nodes], x[loop_nodes[nxt]]
-    cross = a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]
-    return 0.5 * np.add.reduceat(cross, loop_start[:-1])
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, required=True, help="a run folder with scene/ and out/ (with a checkpoint)")
@@ -46,7 +37,8 @@ def main() -> None:
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     from compute.contact import detection
-    from compute.contact.soft_rows import _inside_loop, closest_segment
+    from compute.contact.soft_rows import _inside_loop, _segment_distance2
+    from post.measures import straight_areas
 
     with checkout.resumed(a.run) as run:
         st, m = run.state, run.model
@@ -54,7 +46,7 @@ def main() -> None:
         b = m.bounds(st.q)
         box = (b[1] - b[0]) * (b[3] - b[2])
         soft_fe = sum(g.area(st.q) for g in m.soft)
-        soft_polygon = loop_areas(x, m.loop_nodes, m.loop_start).sum()
+        soft_polygon = sum(straight_areas(xb, g.batch.cells).sum() for g in m.soft for xb in g.nodes(st.q))
         rigid = m.particle_area(st.q) - soft_fe
         print(f"step {st.step}: phi {(rigid + soft_fe) / box:.6f}, phi_contact {(rigid + soft_polygon) / box:.6f} "
               f"(soft bodies: element areas {soft_fe:.4f}, boundary polygons {soft_polygon:.4f})")
@@ -84,7 +76,8 @@ def main() -> None:
                 if body == m.node_body[g] or np.sum((x[g] - centres[body]) ** 2) > radii[body] ** 2:
                     continue
                 if _inside_loop(x[g, 0], x[g, 1], x, L, S[body], n_loop):
-                    d2 = min(closest_segment(x[g, 0], x[g, 1], x, L, S[body], n_loop, s)[1] for s in range(n_loop))
+                    ring = L[S[body]:S[body + 1]]
+                    d2 = min(_segment_distance2(*x[g], *x[a], *x[b])[0] for a, b in zip(ring, np.roll(ring, -1)))
                     found.append((int(g), int(body), float(np.sqrt(d2))))
         missed = [f for f in found if (f[0], f[1]) not in row_of]
         print(f"boundary nodes inside another body: {len(found)}, of which without a node-segment candidate: "

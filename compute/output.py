@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from compute.contact.rows import ContactRows
 from compute.bodies_io import VTU_COMPRESSION
+from compute.contact.rows import ContactRows
 from compute.errors import OutputFolderError
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",

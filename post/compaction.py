@@ -59,8 +59,8 @@ class Group:
     """One (κ, μ): its points pooled over seeds and what was fitted to them.
 
     phi, P, Z, K (n,): the equilibrated points (P and K over E); phi0, Z0 (of the study's Z column)
-    and Z0_no_rattlers averaged over the seeds (``*_std``: their scatter, NaN with one seed); platzer, coordination, eq5: post.fits results
-    (None when a fit failed, see Compaction.notes); eq3, eq3_single (n,): the Eq. 3 predictions
+    and Z0_no_rattlers averaged over the seeds (``*_std``: their scatter, NaN with one seed);
+    platzer, coordination, eq5: post.fits results (None when a fit failed, see Compaction.notes); eq3, eq3_single (n,): the Eq. 3 predictions
     of K/E; errors: the row of errors.csv."""
 
     kappa: float
@@ -304,6 +304,7 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
 
 def _group(kappa: float, mu: float, sel: list[dict]) -> Group:
     seeds = sorted({p["seed"] for p in sel})
+
     def over_seeds(key: str) -> tuple[float, float]:
         """Mean over the seeds of a run-level value, and its scatter (NaN with one seed)."""
         x = np.array([next(p[key] for p in sel if p["seed"] == s) for s in seeds])
