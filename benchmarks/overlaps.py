@@ -2,7 +2,9 @@
 
 Loads RUN's checkpoint (a copy, as the other benchmarks do) and prints: the packing fraction
 with the bodies' element areas (phi, T6 edges curved) and with the areas inside their
-boundary-node polygons (phi_contact, what node-to-segment contacts keep apart); the rows of each
+boundary-node polygons (phi_contact, what node-to-segment contacts keep apart); the area rigid
+disks share with those polygons (their arcs between the soft nodes pressed on them) and phi_net,
+phi_contact less that area (post.measures); the rows of each
 contact family (gaps below 0 and below -1e-3, active rows); then every soft boundary node that
 lies inside another soft body's boundary polygon (found by testing all nodes against all nearby
 bodies, independently of the contact lists): how many, the quantiles of their depth, whether a
@@ -38,7 +40,7 @@ def main() -> None:
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     from compute.contact import detection
     from compute.contact.soft_rows import _inside_loop, _segment_distance2
-    from post.measures import straight_areas
+    from post.measures import rigid_deformable_overlap, straight_areas
 
     with checkout.resumed(a.run) as run:
         st, m = run.state, run.model
@@ -50,6 +52,11 @@ def main() -> None:
         rigid = m.particle_area(st.q) - soft_fe
         print(f"step {st.step}: phi {(rigid + soft_fe) / box:.6f}, phi_contact {(rigid + soft_polygon) / box:.6f} "
               f"(soft bodies: element areas {soft_fe:.4f}, boundary polygons {soft_polygon:.4f})")
+        meshes = [((g.node0 + g.n_nodes * np.arange(g.B)[:, None, None] + g.batch.cells).reshape(-1, g.batch.cells.shape[1]),
+                   np.repeat(np.arange(g.B), len(g.batch.cells))) for g in m.soft]
+        overlap = rigid_deformable_overlap(x, meshes, m.rigid.centres(st.q), m.rigid.radii) / box
+        print(f"rigid disks inside soft boundary polygons: {overlap:.6f} of the box; phi_net (phi_contact less it) "
+              f"{(rigid + soft_polygon) / box - overlap:.6f}")
         if detection.needs_detection(m, st):
             detection.detect(m, st)
         rows = detection.narrow_phase(m, st, branches=False)

@@ -4,7 +4,10 @@ Columns (definitions in :mod:`post.measures`):
 
 - ``frame, time, step, stage, pressure_applied, equilibrated``: copied from frames.csv;
 - ``volume`` box area V; ``phi`` packing fraction; ``phi_contact`` the packing fraction of the
-  contact boundaries (the same for T3; NaN in a table written before it was measured);
+  contact boundaries (the same for T3); ``rigid_overlap`` the area rigid disks share with the
+  deformable bodies' boundary polygons over V; ``phi_net`` = phi_contact - rigid_overlap, the
+  fraction of the box the particles cover (NaN, these three, in a table written before they
+  were measured);
 - ``P, q, sigma_xx, sigma_yy, sigma_xy``: granular stress from the contacts (symmetric part);
 - ``P_walls`` mean wall force / length; ``P_rel_diff`` = P / P_walls - 1, the equilibrium check
   (contacts against walls; ~0 on equilibrated frames);
@@ -27,8 +30,8 @@ import numpy as np
 from post import measures
 from post.frames import Frame, frame_path, read_frame, read_frames_table
 
-COLUMNS = ("frame", "time", "step", "stage", "pressure_applied", "equilibrated", "volume", "phi", "phi_contact", "P", "P_walls",
-           "P_rel_diff", "q", "sigma_xx", "sigma_yy", "sigma_xy", "Z", "Z_no_rattlers", "Z_bulk", "Z_constraints", "n_contacts",
+COLUMNS = ("frame", "time", "step", "stage", "pressure_applied", "equilibrated", "volume", "phi", "phi_contact",
+           "rigid_overlap", "phi_net", "P", "P_walls", "P_rel_diff", "q", "sigma_xx", "sigma_yy", "sigma_xy", "Z", "Z_no_rattlers", "Z_bulk", "Z_constraints", "n_contacts",
            "n_wall_contacts", "n_rattlers", "n_particles", "K")
 
 Row = dict[str, float | int | bool]
@@ -46,6 +49,8 @@ def measure_frame(frame: Frame, min_contacts: int = 2, threshold: float = 1e-9) 
     meshes = [(m.cells, m.body) for m in bodies.meshes]
     areas = measures.particle_areas(bodies.radius, bodies.rigid, bodies.points, meshes)
     contact_areas = measures.particle_areas(bodies.radius, bodies.rigid, bodies.points, meshes, straight=True)
+    overlap = measures.rigid_deformable_overlap(bodies.points, meshes, bodies.rigid_centres,
+                                                bodies.radius[bodies.rigid_ids]) / volume
     active = measures.active_contacts(contacts.fn, threshold)
     pairs = measures.contact_pairs(contacts.body_i[active], contacts.body_j[active])
     rattler = measures.rattlers(pairs, bodies.n_bodies, min_contacts)
@@ -57,7 +62,8 @@ def measure_frame(frame: Frame, min_contacts: int = 2, threshold: float = 1e-9) 
         "frame": record.frame, "time": record.time, "step": record.step, "stage": record.stage,
         "pressure_applied": record.pressure_applied, "equilibrated": record.equilibrated,
         "volume": volume, "phi": measures.packing_fraction(areas, volume),
-        "phi_contact": measures.packing_fraction(contact_areas, volume),
+        "phi_contact": measures.packing_fraction(contact_areas, volume), "rigid_overlap": overlap,
+        "phi_net": measures.packing_fraction(contact_areas, volume) - overlap,
         "P": float(P), "P_walls": P_walls, "P_rel_diff": float(P / P_walls - 1) if P_walls else np.nan,
         "q": float(q), "sigma_xx": float(sigma[0, 0]), "sigma_yy": float(sigma[1, 1]),
         "sigma_xy": float(0.5 * (sigma[0, 1] + sigma[1, 0])),

@@ -39,6 +39,10 @@ def test_mixed_lattice_rattler_and_deformable_bodies(mixed_lattice):
         straight = 2 * (32 * 0.5 * 0.5**2 * np.sin(2 * np.pi / 32))  # T6 rims: 32-gons through corners and midsides
         assert row["phi_contact"] == pytest.approx((areas - 2 * fan_area(0.5, 16, "T6") + straight) / (4 * spacing) ** 2,
                                                    rel=1e-12)
+        assert row["phi_net"] == row["phi_contact"] - row["rigid_overlap"]
+        # the rigid disks touch the T6 rims (circumradius 0.5) at spacing 1, then press into them:
+        # the rim polygon is inscribed, so it overlaps a disk only once the lattice is compressed
+        assert abs(row["rigid_overlap"]) < 1e-15 if spacing == 1.0 else row["rigid_overlap"] > 1e-6
         assert row["P"] == pytest.approx(row["pressure_applied"], rel=1e-12)
         assert row["P_walls"] == pytest.approx(row["pressure_applied"], rel=1e-12)
         assert row["n_rattlers"] == 1 and row["n_particles"] == 17
@@ -177,12 +181,83 @@ def test_frames_whose_files_are_gone_keep_their_earlier_measures(mixed_lattice):
             np.testing.assert_equal(a[key], b[key])
     with pytest.raises(OutputError, match="bodies"):
         measure_output(mixed_lattice)
-    older = table.read_text().replace(",phi_contact,", ",").splitlines()  # a table from before the column
-    table.write_text("\n".join([older[0]] + [",".join(np.delete(line.split(","), 8)) for line in older[1:]]) + "\n")
+    older = table.read_text().replace(",phi_contact,rigid_overlap,phi_net,", ",").splitlines()  # from before them
+    table.write_text("\n".join([older[0]] + [",".join(np.delete(line.split(","), [8, 9, 10])) for line in older[1:]])
+                     + "\n")
     before = measure_output(mixed_lattice, kept=table)
-    assert np.isnan(before[1]["phi_contact"]) and before[1]["phi"] == measured[1]["phi"]
-    assert before[0]["phi_contact"] == measured[0]["phi_contact"]  # measured again from its frame
+    for key in ("phi_contact", "rigid_overlap", "phi_net"):
+        assert np.isnan(before[1][key]) and before[1]["phi"] == measured[1]["phi"]
+        assert before[0][key] == measured[0][key]  # measured again from its frame
     frame_path(mixed_lattice, "bodies", 2).unlink()
     write_measures(measured[:2], table)
     with pytest.raises(OutputError, match="bodies"):
         measure_output(mixed_lattice, kept=table)
+
+
+def _square(half: float) -> np.ndarray:
+    return np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
+
+
+def _polygon_disk_area(polygon: np.ndarray, centre, r: float) -> float:
+    a = polygon - np.asarray(centre, float)
+    return float(measures.disk_fan_area(a, np.roll(a, -1, axis=0), np.full(len(a), r)).sum())
+
+
+@pytest.mark.parametrize("centre, r, expected", [
+    ((0.3, -0.2), 0.5, np.pi * 0.25),                     # disk inside the square
+    ((0.0, 0.0), 5.0, 16.0),                               # square inside the disk
+    ((2.0, 0.4), 0.5, np.pi * 0.25 / 2),                   # centred on an edge: half the disk
+    ((5.0, 5.0), 0.5, 0.0),                                # apart
+    ((2.3, 0.0), 0.5, 0.25 * np.arccos(0.6) - 0.3 * 0.4),  # a circular segment, d = 0.3 beyond the edge
+    ((2.0, 2.0), 0.5, np.pi * 0.25 / 4),                   # centred on a corner: a quarter
+])
+def test_disk_polygon_intersection_is_exact(centre, r, expected):
+    """Sum of disk_fan_area over a polygon's edges against the areas of circle geometry (square
+    of half-width 2)."""
+    assert _polygon_disk_area(_square(2.0), centre, r) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
+def test_disk_polygon_intersection_against_sampling():
+    """A random convex polygon and disk: the exact area against 4e6 uniform samples (3 sigma)."""
+    rng = np.random.default_rng(5)
+    angle = np.sort(rng.uniform(0, 2 * np.pi, 9))
+    polygon = np.stack([np.cos(angle), np.sin(angle)], axis=1) * rng.uniform(0.8, 1.2, (9, 1))
+    centre, r = np.array([0.7, 0.4]), 0.6
+    exact = _polygon_disk_area(polygon, centre, r)
+    from matplotlib.path import Path as MPath
+
+    p = centre + rng.uniform(-r, r, (4_000_000, 2))
+    inside = (np.sum((p - centre) ** 2, axis=1) < r**2) & MPath(polygon).contains_points(p)
+    frac = inside.mean()
+    assert exact == pytest.approx(frac * 4 * r**2, abs=3 * np.sqrt(frac * (1 - frac) / len(p)) * 4 * r**2)
+    assert 0.1 * np.pi * r**2 < exact < 0.9 * np.pi * r**2  # a partial overlap
+
+
+@pytest.mark.parametrize("element, n_edges", [("T3", 16), ("T6", 32)])
+def test_boundary_edges_of_a_fan(element, n_edges):
+    """The straight boundary of a 16-sector fan: 16 (T3) or 32 (T6) counter-clockwise pieces whose
+    shoelace area is the straight (boundary-polygon) area."""
+    points, cells = disk_fan(np.array([1.0, 2.0]), 0.5, 16, element)
+    edges, cell = measures.boundary_edges(cells)
+    assert len(edges) == n_edges and set(cell) == set(range(16))
+    a, b = points[edges[:, 0]], points[edges[:, 1]]
+    shoelace = 0.5 * np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1])
+    assert shoelace == pytest.approx(measures.straight_areas(points, cells).sum(), rel=1e-12)
+    assert shoelace == pytest.approx(n_edges * 0.5 * 0.25 * np.sin(2 * np.pi / n_edges), rel=1e-12)
+
+
+def test_rigid_deformable_overlap():
+    """Two T3 fans (16 sectors, radius 1) and three rigid disks: one inside the first fan's
+    polygon, one cutting a circular segment from an edge of the second, one touching nothing.
+    The total is the sum of the exact pieces."""
+    fans = [disk_fan(np.array(c), 1.0, 16, "T3") for c in ((0.0, 0.0), (5.0, 0.0))]
+    points = np.vstack([p for p, _ in fans])
+    cells = np.vstack([fans[0][1], fans[1][1] + len(fans[0][0])])
+    body = np.repeat([0, 1], 16)
+    apothem, mid = np.cos(np.pi / 16), np.array([np.cos(np.pi / 16), np.sin(np.pi / 16)])  # first edge's normal
+    d, r = 0.05, 0.1
+    centres = np.array([[0.2, 0.1], [5.0, 0.0] + (apothem + d) * mid, [2.5, 3.0]])
+    radii = np.array([0.3, r, 0.4])
+    segment = r**2 * np.arccos(d / r) - d * np.sqrt(r**2 - d**2)
+    got = measures.rigid_deformable_overlap(points, [(cells, body)], centres, radii)
+    assert got == pytest.approx(np.pi * 0.09 + segment, rel=1e-12)
