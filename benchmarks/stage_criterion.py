@@ -45,7 +45,12 @@ def run_variant(scene: Path, out: Path) -> dict:
         status = "complete"
     except SimulationError as exc:
         status = f"failed: {exc}"
-    seconds = time.perf_counter() - t0
+    return {"status": status, "seconds": time.perf_counter() - t0} | stages_of(out)
+
+
+def stages_of(out: Path) -> dict:
+    """Steps per stage, Newton iterations and each stage's end φ (its last history row) of an
+    output folder."""
     last: dict[int, dict] = {}
     steps: dict[int, int] = {}
     newton = 0
@@ -53,7 +58,7 @@ def run_variant(scene: Path, out: Path) -> dict:
         stage = int(row["stage"])
         last[stage], steps[stage] = row, steps.get(stage, 0) + 1
         newton += int(row["newton_iterations"])
-    return {"status": status, "seconds": seconds, "steps": [steps[k] for k in sorted(steps)], "newton": newton,
+    return {"steps": [steps[k] for k in sorted(steps)], "newton": newton,
             "phi": [float(last[k]["phi"]) for k in sorted(last)]}
 
 

@@ -125,11 +125,11 @@ LOADING = (
     Key("velocity", "float", "inward wall speed", "length / time", low=-SCALE, high=SCALE,
         when=("control", "velocity"), default=0.0),
     _positive("duration", "duration of the velocity stage", "time", when=("control", "velocity"), default=0.0),
-    _tolerance("phi_tolerance", "relative variation of φ over check_every steps that ends a stage"),
+    _tolerance("phi_tolerance", "relative change of φ over the last check_every steps that ends a stage"),
     _tolerance("inertial_tolerance", "inertial number I = |ε̇| ⟨d⟩ √(ρ/P) below which a stage may end"),
     Key("force_tolerance", "float", "|contact force − P L| / (P L) on every wall that ends a stage (0: no check)",
         low=0.0, high=1.0, default=0.0),
-    _count("check_every", "steps between two equilibrium checks"),
+    _count("check_every", "steps of the sliding window of the stage-end test (tested after every step)"),
     _count("max_steps_per_stage", "a stage ends INCOMPLETE after this many steps"),
     Key("gravity", "floats", "gravity [gx, gy]", "length / time²", low=-SCALE, high=SCALE, length=2),
 )

@@ -16,7 +16,8 @@ class State:
     """Everything a step reads and writes; a checkpoint saves exactly this.
 
     ``q``, ``v`` (n_dofs,); ``stage`` index into the loading program; ``stage_steps`` steps
-    done in the current stage; ``phi_check`` φ at the last equilibrium check; the stage's load
+    done in the current stage; ``phi_window`` φ after each of the stage's last steps, at most
+    ``loading.check_every`` + 1 of them (the stage-end test, compute.run); the stage's load
     ramp (:mod:`compute.stepping.load_control`): ``load_fraction`` λ applied, ``load_increment``
     Δλ of the next step, ``load_accepted`` steps accepted at that increment; the step control's
     (:mod:`compute.stepping.control`) ``cut_depth`` (a step starts as 2**cut_depth sub-steps) and
@@ -31,7 +32,7 @@ class State:
     step: int = 0
     stage: int = 0
     stage_steps: int = 0
-    phi_check: float = np.nan
+    phi_window: np.ndarray = field(default_factory=lambda: np.zeros(0))
     frame: int = 0
     load_fraction: float = 0.0
     load_increment: float = 1.0
@@ -44,7 +45,8 @@ class State:
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"q": self.q, "v": self.v,
-               "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.phi_check, self.frame]),
+               "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.frame]),
+               "phi_window": self.phi_window,
                "load": np.array([self.load_fraction, self.load_increment, self.load_accepted]),
                "cuts": np.array([self.cut_depth, self.cut_accepted])}
         if self.q_detect is not None:
@@ -56,14 +58,18 @@ class State:
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray]) -> "State":
-        t, step, stage, stage_steps, phi_check, frame = a["scalars"]
+        scalars = a["scalars"]
+        # checkpoints written before the sliding stage-end test had φ at the last check in 5th
+        # place: their stage's window starts empty (its test waits check_every steps more)
+        t, step, stage, stage_steps, frame = np.delete(scalars, 4) if len(scalars) == 6 else scalars
         families = [k[len("pairs_"):] for k in a if k.startswith("pairs_")]
         # checkpoints written before load ramps applied each stage's load at once: λ = 1
         fraction, increment, accepted = a["load"] if "load" in a else (1.0, 1.0, 0)
         # and before the step control kept the depth of its cuts: every step started whole
         depth, depth_accepted = a["cuts"] if "cuts" in a else (0, 0)
         return cls(q=a["q"].copy(), v=a["v"].copy(), time=float(t), step=int(step), stage=int(stage),
-                   stage_steps=int(stage_steps), phi_check=float(phi_check), frame=int(frame),
+                   stage_steps=int(stage_steps), phi_window=a["phi_window"].copy() if "phi_window" in a else np.zeros(0),
+                   frame=int(frame),
                    load_fraction=float(fraction), load_increment=float(increment), load_accepted=int(accepted),
                    cut_depth=int(depth), cut_accepted=int(depth_accepted),
                    q_detect=a["q_detect"].copy() if "q_detect" in a else None,

@@ -25,7 +25,7 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   of the box in a T3 mixture at P/E = 1). Rows of the disk against the segments' interiors
   remove that overlap but were rejected as measured: a disk on one straight segment has no
   rolling resistance and the segment tilts under it, so a 144-disk kappa = 0.5, mu = 0.2
-  mixture did not come to rest at P/E = 0.03 (kinetic energy steady at 1.8e-5 for 3800
+  T6 mixture did not come to rest at P/E = 0.03 (kinetic energy steady at 1.8e-5 for 3800
   steps; 440 steps for the whole program with node-disk rows alone).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then

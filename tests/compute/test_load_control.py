@@ -138,3 +138,27 @@ def test_equilibrated_run_is_complete(tmp_path):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert (tmp_path / "out" / "COMPLETE").is_file() and summary["status"] == "complete"
     assert summary["contact_misses"] == 0 and all(s["equilibrated"] for s in summary["stages"])
+
+
+def test_a_stage_ends_at_the_first_step_that_passes_the_test(tmp_path):
+    """The stage-end test over a sliding window (compute.run), recomputed from history.csv: each
+    stage ends at the first step with its full load at which φ differs from φ check_every steps
+    before by less than phi_tolerance (relative) and the inertial number is below
+    inertial_tolerance (the wall force-balance test switched off: history.csv does not hold
+    the wall forces)."""
+    import csv
+
+    from pre.scene import copy_scene
+
+    source, p = rigid_scene(tmp_path / "scene", nlgs_max_sweeps=100_000)
+    scene = copy_scene(source, tmp_path / "window", {"loading.force_tolerance": 0.0})
+    Run(scene, tmp_path / "out", log=lambda m: None).execute()
+    history = list(csv.DictReader(open(tmp_path / "out" / "history.csv")))
+    window, tol = p["loading"]["check_every"], p["loading"]["phi_tolerance"]
+    for stage, target in enumerate(p["loading"]["pressures"]):
+        rows = [r for r in history if int(r["stage"]) == stage]
+        phi = np.array([float(r["phi"]) for r in rows])
+        passes = [k >= window and float(rows[k]["pressure_applied"]) == target
+                  and abs(phi[k] - phi[k - window]) < tol * phi[k] and float(rows[k]["inertial_number"]) < tol
+                  for k in range(len(rows))]
+        assert passes[-1] and not any(passes[:-1]), stage
