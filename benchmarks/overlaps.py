@@ -4,7 +4,8 @@ Loads RUN's checkpoint (a copy, as the other benchmarks do) and prints: the pack
 with the bodies' element areas (phi, T6 edges curved) and with the areas inside their
 boundary-node polygons (phi_contact, what node-to-segment contacts keep apart); the area rigid
 disks share with those polygons (their arcs between the soft nodes pressed on them) and phi_net,
-phi_contact less that area (post.measures); the rows of each
+phi_contact less that area (post.measures); the rigid disks that reach deepest into a soft
+polygon (wedged between two boundary nodes); the rows of each
 contact family (gaps below 0 and below -1e-3, active rows); then every soft boundary node that
 lies inside another soft body's boundary polygon (found by testing all nodes against all nearby
 bodies, independently of the contact lists): how many, the quantiles of their depth, whether a
@@ -57,6 +58,12 @@ def main() -> None:
         overlap = rigid_deformable_overlap(x, meshes, m.rigid.centres(st.q), m.rigid.radii) / box
         print(f"rigid disks inside soft boundary polygons: {overlap:.6f} of the box; phi_net (phi_contact less it) "
               f"{(rigid + soft_polygon) / box - overlap:.6f}")
+        wedges = disk_wedges(m, st.q)
+        if len(wedges):
+            print(f"rigid disks reaching into soft polygons: {len(wedges)}; deepest (depth, depth / boundary segment "
+                  "length, soft body, rigid body):")
+            for depth, ratio, soft, disk in wedges[:a.top]:
+                print(f"  {depth:.3e}  {ratio:.3f}  {soft}  {disk}")
         if detection.needs_detection(m, st):
             detection.detect(m, st)
         rows = detection.narrow_phase(m, st, branches=False)
@@ -99,6 +106,29 @@ def main() -> None:
             row = (f"row gap {rows.gap[first['node_segment'] + r]:.3e}, impulse "
                    f"{rows.impulse[first['node_segment'] + r, 0]:.3g}" if r is not None else "no row")
             print(f"  node {g} of body {m.soft_ids[m.node_body[g]]} inside body {m.soft_ids[body]}: depth {d:.3e}, {row}")
+
+
+def disk_wedges(m, q) -> list[tuple[float, float, int, int]]:
+    """Every (rigid disk, soft body) pair where the disk reaches into the body's boundary polygon:
+    (depth = radius - distance from its centre to the boundary, depth over the body's mean
+    boundary segment length, soft body id, rigid body id), deepest first. Node-to-disk contacts
+    hold the nodes, not the segments between them: a disk whose arc sags between two nodes on it
+    reaches in by its sagitta (about 1e-2 of a segment); much deeper, it is wedged between them."""
+    x, loops, start = m.soft_nodes(q), m.loop_nodes, m.loop_start
+    centres, radii = m.rigid.centres(q), m.rigid.radii
+    tree = cKDTree(centres)
+    out = []
+    for k in range(len(start) - 1):
+        a = x[loops[start[k]:start[k + 1]]]
+        e = np.roll(a, -1, axis=0) - a
+        reach = np.linalg.norm(a - a.mean(axis=0), axis=1).max() + radii.max()
+        for d in tree.query_ball_point(a.mean(axis=0), reach):
+            t = np.clip(np.einsum("ij,ij->i", centres[d] - a, e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
+            depth = radii[d] - np.linalg.norm(a + t[:, None] * e - centres[d], axis=1).min()
+            if depth > 0.0:
+                out.append((float(depth), float(depth / np.linalg.norm(e, axis=1).mean()), int(m.soft_ids[k]),
+                            int(m.rigid.ids[d])))
+    return sorted(out, reverse=True)
 
 
 if __name__ == "__main__":

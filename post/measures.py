@@ -18,7 +18,7 @@ Definitions (N_p particles, walls are not particles):
   around a rigid disk, the disk's arc passes into the polygon between the nodes pressed on it.
   This is the overlap the contacts leave (node penetrations are 1e-6-deep); it grows with the
   pressure (1500-disk T3 mixtures at P/E = 1: 0.3 % of the box for kappa = 0.2, 0.6 % for
-  0.5, 1.0 % for 0.8).
+  0.5, 1.0 % for 0.8 with mu = 0).
 - Net packing fraction phi_net = phi_contact - rigid overlap: the fraction of the box the
   particles cover, each point once (up to the node penetrations).
 - Active contact: a contact candidate with fn > threshold x mean(fn of the candidates with fn > 0),

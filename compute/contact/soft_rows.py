@@ -22,7 +22,10 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   dofs (node x, y, disk x, y, rotation); the disk's contact point is x_d - r_d n. Only the
   nodes are kept out of the disk: where a soft body wraps around it, the disk's arc passes
   into the body's polygon between the nodes pressed on it (post.measures' rigid overlap: 1 %
-  of the box in a T3 mixture at P/E = 1). Rows of the disk against the segments' interiors
+  of the box in a T3 mixture at P/E = 1), and at high pressure a disk can wedge through a
+  stretched boundary segment into the body (1500-disk T3 mixtures at P/E = 1: disks 1.5–2
+  segment lengths deep; frictionless ones fail there on the elements it inverts;
+  benchmarks/overlaps.py lists them). Rows of the disk against the segments' interiors
   remove that overlap but were rejected as measured: a disk on one straight segment has no
   rolling resistance and the segment tilts under it, so a 144-disk kappa = 0.5, mu = 0.2
   T6 mixture did not come to rest at P/E = 0.03 (kinetic energy steady at 1.8e-5 for 3800
