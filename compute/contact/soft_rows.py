@@ -25,11 +25,15 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   of the box in a T3 mixture at P/E = 1), and at high pressure a disk can wedge through a
   stretched boundary segment into the body (1500-disk T3 mixtures at P/E = 1: disks 1.5–2
   segment lengths deep; frictionless ones fail there on the elements it inverts;
-  benchmarks/overlaps.py lists them). Rows of the disk against the segments' interiors
-  remove that overlap but were rejected as measured: a disk on one straight segment has no
-  rolling resistance and the segment tilts under it, so a 144-disk kappa = 0.5, mu = 0.2
-  T6 mixture did not come to rest at P/E = 0.03 (kinetic energy steady at 1.8e-5 for 3800
-  steps; 440 steps for the whole program with node-disk rows alone).
+  benchmarks/overlaps.py lists them). Rows of the disk against the segments' interiors (as
+  well as these) were tried and not adopted, as measured on the 144-disk kappa = 0.5, mu = 0.2
+  program P/E = 0.01 ... 1: with T6 it did not come to rest at P/E = 0.03 (kinetic energy
+  steady at 1.8e-5 for 3800 steps; 440 steps for the whole program without them); with T3 it
+  completed in 657 steps against 324, with the overlap gone at P/E = 1 (3e-5 of the box
+  against 4.8e-3, deepest disk 0.016 segment against 0.30) and φ lower from the first stage
+  on (0.8093 against 0.8115; 0.9385 against 0.9504 at P/E = 1, 0.9456 without the overlap).
+  A disk on one straight segment has no rolling resistance and the segment tilts under it;
+  which of the two is nearer the converged mesh is not measured.
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);
