@@ -103,6 +103,14 @@ def _locked(path: Path) -> bool:
         return False
 
 
+def _checkpointed_after_first_frame(out: Path) -> bool:
+    frame, state = out / "frames" / "bodies_00000.vtu", out / "checkpoint" / "state.npz"
+    try:
+        return os.stat(state).st_mtime_ns >= os.stat(frame).st_mtime_ns
+    except FileNotFoundError:
+        return False
+
+
 def test_killed_study_finishes_only_the_missing_runs(tmp_path):
     w = tmp_path / "study"
     script("pre", w, *TINY, "--kappa", "0.5", "1")
@@ -111,9 +119,10 @@ def test_killed_study_finishes_only_the_missing_runs(tmp_path):
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.time() + 240
-        # kill once the first run is complete and the second has checkpointed its first stage
-        while not ((first / "COMPLETE").is_file() and (second / "frames.csv").is_file()
-                   and len((second / "frames.csv").read_text().splitlines()) >= 2):
+        # kill once the first run is complete and the second has checkpointed its first stage: a
+        # checkpoint no older than its first frame (the frame is written first; killed between
+        # the two, the run would rightly start again)
+        while not ((first / "COMPLETE").is_file() and _checkpointed_after_first_frame(second)):
             assert proc.poll() is None, "compute.py ended before it could be killed"
             assert time.time() < deadline
             time.sleep(0.05)
