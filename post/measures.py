@@ -155,7 +155,7 @@ def rigid_deformable_overlap(points: np.ndarray, meshes: list[tuple[np.ndarray, 
         pair_disk = np.fromiter((d for n in near for d in n), np.int64, len(pair_body))
         hit = np.linalg.norm(centres[pair_disk] - centre[pair_body], axis=1) < reach[pair_body] + radii[pair_disk]
         pair_body, pair_disk = pair_body[hit], pair_disk[hit]
-        n_edges = count[pair_body]
+        n_edges = count[pair_body]  # every boundary piece of each pair's body, pair after pair:
         edge = np.repeat(start[pair_body] - np.cumsum(n_edges) + n_edges, n_edges) + np.arange(n_edges.sum())
         disk = np.repeat(pair_disk, n_edges)
         total += float(disk_fan_area(ends[edge, 0] - centres[disk], ends[edge, 1] - centres[disk], radii[disk]).sum())
