@@ -32,8 +32,10 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   completed in 657 steps against 324, with the overlap gone at P/E = 1 (3e-5 of the box
   against 4.8e-3, deepest disk 0.016 segment against 0.30) and φ lower from the first stage
   on (0.8093 against 0.8115; 0.9385 against 0.9504 at P/E = 1, 0.9456 without the overlap).
-  A disk on one straight segment has no rolling resistance and the segment tilts under it;
-  which of the two is nearer the converged mesh is not measured.
+  A disk on one straight segment has no rolling resistance and the segment tilts under it.
+  They carried the 1500-disk T3 kappa = 0.2, mu = 0 run through P/E = 1, where it fails
+  without them; which of the two is nearer the converged mesh is not measured
+  (benchmarks/experiments/README.md, with the patch).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);
