@@ -83,22 +83,29 @@ def main() -> None:
             r = rows[name]
             print(f"{name}: {r['status']}, {sum(r['steps'])} steps {r['steps']}, {r['seconds']:.0f} s", flush=True)
     tight = rows[next(iter(variants))]
-    lines = [f"# Steps per stage against the stage-end test ({a.scene.parent.name})", "",
-             f"`python benchmarks/stage_criterion.py --scene {a.scene} --check-every "
-             f"{' '.join(map(str, a.check_every))} --time-step {' '.join(map(str, a.time_step))} --output {a.output}`; "
-             f"time step h = {tomllib.loads((a.scene / 'scene.toml').read_text())['solver']['time_step']:g} but in the h = variants; the scene's test: φ change below "
-             f"{value['phi_tolerance']:g} between checks, inertial number below {value['inertial_tolerance']:g}. "
-             "|Δφ| = largest difference of a stage's end φ from the tight run's.", "",
-             "| variant | status | steps per stage | steps | seconds | Newton iterations | end φ per stage | \\|Δφ\\| |",
+    write_table(f"Steps per stage against the stage-end test ({a.scene.parent.name})",
+                f"`python benchmarks/stage_criterion.py --scene {a.scene} --check-every "
+                f"{' '.join(map(str, a.check_every))} --time-step {' '.join(map(str, a.time_step))} --output {a.output}`; "
+                f"time step h = {tomllib.loads((a.scene / 'scene.toml').read_text())['solver']['time_step']:g} but in the h = variants; the scene's test: φ change below "
+                f"{value['phi_tolerance']:g} between checks, inertial number below {value['inertial_tolerance']:g}.",
+                "variant", rows, tight, a.output)
+
+
+def write_table(title: str, how: str, first: str, rows: dict, reference: dict, output: str) -> None:
+    """Write benchmarks/results/OUTPUT.md, and print it: a table of the runs ``rows`` ({name:
+    run_variant-like dict}) with each one's largest end-φ difference from ``reference``'s; ``how``
+    the paragraph under the title, ``first`` the first column's header."""
+    lines = [f"# {title}", "", f"{how} |Δφ| = largest difference of a stage's end φ from the tight run's.", "",
+             f"| {first} | status | steps per stage | steps | seconds | Newton iterations | end φ per stage | \\|Δφ\\| |",
              "|---|---|---|---|---|---|---|---|"]
     for name, r in rows.items():
-        dphi = max(abs(p - q) for p, q in zip(r["phi"], tight["phi"])) if len(r["phi"]) == len(tight["phi"]) else float("nan")
+        same = len(r["phi"]) == len(reference["phi"])
+        dphi = max(abs(p - q) for p, q in zip(r["phi"], reference["phi"])) if same else float("nan")
         lines.append(f"| {name} | {r['status']} | {' '.join(map(str, r['steps']))} | {sum(r['steps'])} | "
                      f"{r['seconds']:.0f} | {r['newton']} | {' '.join(f'{p:.5f}' for p in r['phi'])} | {dphi:.1e} |")
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{a.output}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{output}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-
 
 if __name__ == "__main__":
     main()

@@ -24,9 +24,8 @@ import time
 import tomllib
 from pathlib import Path
 
-from stage_criterion import stages_of
+from stage_criterion import stages_of, write_table
 
-RESULTS = Path(__file__).resolve().parent / "results"
 HERE = Path(__file__).resolve().parents[1]
 
 
@@ -60,22 +59,11 @@ def main() -> None:
                                        ("tight (after, tolerances / 10)", HERE, tight)):
             rows[name] = r = run_in(checkout, folder, Path(tmp) / f"out{len(rows)}")
             print(f"{name}: {r['status']}, {sum(r['steps'])} steps {r['steps']}, {r['seconds']:.0f} s", flush=True)
-    ref = rows["tight (after, tolerances / 10)"]
-    lines = [f"# Stage-end test: sliding window against checks every check_every steps ({scene.parent.name})", "",
-             f"`python benchmarks/stage_window.py --scene {a.scene} --before {a.before} --output {a.output}`; "
-             f"check_every = {loading['check_every']}, phi_tolerance = {loading['phi_tolerance']:g}, inertial_tolerance = "
-             f"{loading['inertial_tolerance']:g}, force_tolerance = {loading['force_tolerance']:g}. One thread per run, "
-             "the runs one after the other. |Δφ| = largest difference of a stage's end φ from the tight run's.", "",
-             "| run | status | steps per stage | steps | seconds | Newton iterations | end φ per stage | \\|Δφ\\| |",
-             "|---|---|---|---|---|---|---|---|"]
-    for name, r in rows.items():
-        dphi = max(abs(p - q) for p, q in zip(r["phi"], ref["phi"])) if len(r["phi"]) == len(ref["phi"]) else float("nan")
-        lines.append(f"| {name} | {r['status']} | {' '.join(map(str, r['steps']))} | {sum(r['steps'])} | "
-                     f"{r['seconds']:.0f} | {r['newton']} | {' '.join(f'{p:.5f}' for p in r['phi'])} | {dphi:.1e} |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{a.output}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-
+    write_table(f"Stage-end test: sliding window against checks every check_every steps ({scene.parent.name})",
+                f"`python benchmarks/stage_window.py --scene {a.scene} --before {a.before} --output {a.output}`; "
+                f"check_every = {loading['check_every']}, phi_tolerance = {loading['phi_tolerance']:g}, inertial_tolerance = "
+                f"{loading['inertial_tolerance']:g}, force_tolerance = {loading['force_tolerance']:g}. One thread per run, "
+                "the runs one after the other.", "run", rows, rows["tight (after, tolerances / 10)"], a.output)
 
 if __name__ == "__main__":
     main()

@@ -165,8 +165,8 @@ class Run:
         previous = load.pressures[st.stage - 1] if st.stage else 0.0
         while True:
             rep, applied, halvings = load_control.controlled_step(self.stepper, st, previous, pressure, self.log)
-            self._record(rep, applied, halvings)
-            st.phi_window = np.append(st.phi_window, self.model.phi(st.q))[-(load.check_every + 1):]
+            phi = self._record(rep, applied, halvings)
+            st.phi_window = np.append(st.phi_window, phi)[-(load.check_every + 1):]
             ramped = st.load_fraction >= 1.0
             if ramped and self._equilibrated(pressure):
                 self.write_frame(pressure, equilibrated=True)
@@ -196,8 +196,8 @@ class Run:
         self.progress.stage_done()
         st.stage = 1
 
-    def _record(self, rep, pressure: float, halvings: int) -> None:
-        """History row and frames after an accepted step."""
+    def _record(self, rep, pressure: float, halvings: int) -> float:
+        """History row and frames after an accepted step; returns its φ."""
         st = self.state
         self.last_contacts = rep.contacts
         st.stage_steps += 1
@@ -214,6 +214,7 @@ class Run:
         out = self.scene.output
         if out.every_steps and st.step % out.every_steps == 0:
             self.write_frame(pressure, equilibrated=False)
+        return phi
 
     def _periodic_checkpoint(self) -> None:
         """A checkpoint every ``checkpoint_every_steps`` steps, and, when ``checkpoint_minutes`` was

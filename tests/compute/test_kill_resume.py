@@ -22,9 +22,10 @@ KILLER = textwrap.dedent("""
     record, checkpoint = r.Run._record, r.Run.checkpoint
 
     def killing_record(self, *a):
-        record(self, *a)
+        phi = record(self, *a)
         if moment == "step" and self.state.step == step:
             os.kill(os.getpid(), signal.SIGKILL)
+        return phi
 
     def killing_checkpoint(self):
         checkpoint(self)
