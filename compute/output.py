@@ -130,15 +130,22 @@ def write_csv_rows(path: Path, columns: list[str], rows: list[dict]) -> None:
 
 
 class History:
-    """Per-step history rows, appended to ``history.csv`` and flushed at checkpoints."""
+    """Per-step history rows, appended to ``history.csv`` and flushed at checkpoints.
+
+    ``missing``: the ranges [first, last] of steps up to the resume step that have no row (a
+    history copied while its run was writing it, older than the checkpoint beside it); the run
+    goes on from the checkpoint all the same, and says so."""
 
     def __init__(self, path: Path, resume_step: int | None):
         self.path = path
+        self.missing: list[tuple[int, int]] = []
         if resume_step is None or not path.is_file():
             with open(path, "w", newline="") as fh:
                 csv.writer(fh).writerow(HISTORY_COLUMNS)
         else:
-            write_csv_rows(path, HISTORY_COLUMNS, rows_up_to_step(path, resume_step))
+            rows = rows_up_to_step(path, resume_step)
+            self.missing = missing_steps([int(r["step"]) for r in rows], resume_step)
+            write_csv_rows(path, HISTORY_COLUMNS, rows)
         self.fh = open(path, "a", newline="")
         self.writer = csv.writer(self.fh)
 
@@ -176,6 +183,17 @@ def rows_up_to_step(path: Path, step: int) -> list[dict]:
             if int(row["step"]) == step:
                 break
     return rows
+
+
+def missing_steps(steps: list[int], last: int) -> list[tuple[int, int]]:
+    """Ranges [first, last] (inclusive) of the steps 1..``last`` absent from the increasing
+    ``steps``."""
+    gaps, expected = [], 1
+    for s in [*steps, last + 1]:
+        if s > expected:
+            gaps.append((expected, s - 1))
+        expected = max(expected, s + 1)
+    return gaps
 
 
 def _fmt(x) -> str:

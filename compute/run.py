@@ -72,6 +72,10 @@ class Run:
         try:
             self.state = self._start(resume)
             self.history = output.History(self.out / "history.csv", self.state.step if resume else None)
+            if self.history.missing:
+                gaps = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in self.history.missing)
+                self.log(f"warning: {self.out / 'history.csv'} has no rows for steps {gaps} before the checkpoint "
+                         f"at step {self.state.step} (a copy older than the checkpoint); going on from the checkpoint")
         except BaseException:
             output_folder.release(self._lock)
             raise
@@ -136,7 +140,7 @@ class Run:
                 while self.state.stage < len(self.scene.loading.pressures):
                     self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
-            done = summary.finish(self.out, self.scene)
+            done = summary.finish(self.out, self.scene, self.state.step)
             status = done["status"]
             if done["status"] != "complete":
                 self.log("WARNING: run INCOMPLETE: " + summary.incomplete_reasons(done).replace("\n", "; "))

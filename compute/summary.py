@@ -11,7 +11,9 @@ A run that went through its whole loading program ends
 Both are derived from ``history.csv`` and ``frames.csv``, so a resumed run counts its steps from
 before the resume too. ``summary.json``: per stage its target pressure, steps, whether it was
 equilibrated, Newton iterations, cuts, load-increment halvings, sub-steps (of the steps whose
-history records them), contact misses and the largest contact residual; and the totals.
+history records them), contact misses and the largest contact residual; and the totals:
+``steps`` the run's last step, ``history_missing_steps`` the ranges of steps without a row in
+``history.csv`` (compute.output.History; the per-stage sums leave them out).
 """
 
 from __future__ import annotations
@@ -24,8 +26,9 @@ from compute import output
 MARKERS = ("COMPLETE", "INCOMPLETE")
 
 
-def run_summary(out: Path, scene) -> dict:
-    """The summary (module docstring) of the run in ``out`` of ``scene``."""
+def run_summary(out: Path, scene, last_step: int) -> dict:
+    """The summary (module docstring) of the run in ``out`` of ``scene``, which ended at step
+    ``last_step``."""
     tol = scene.solver.nlgs_tolerance
     history = output.read_csv_rows(out / "history.csv")
     frames = output.read_csv_rows(out / "frames.csv")
@@ -52,7 +55,8 @@ def run_summary(out: Path, scene) -> dict:
     misses = sum(s["contact_misses"] for s in stages)
     return {
         "status": "complete" if not not_equilibrated and not misses else "incomplete",
-        "steps": len(history),
+        "steps": last_step,
+        "history_missing_steps": output.missing_steps([int(r["step"]) for r in history], last_step),
         "contact_tolerance": tol,
         "stages_not_equilibrated": not_equilibrated,
         "contact_misses": misses,
@@ -60,9 +64,10 @@ def run_summary(out: Path, scene) -> dict:
     }
 
 
-def finish(out: Path, scene) -> dict:
-    """Write ``summary.json`` and COMPLETE or INCOMPLETE (removing the other); return the summary."""
-    summary = run_summary(out, scene)
+def finish(out: Path, scene, last_step: int) -> dict:
+    """Write ``summary.json`` and COMPLETE or INCOMPLETE (removing the other) for the run in
+    ``out`` that ended at step ``last_step``; return the summary."""
+    summary = run_summary(out, scene, last_step)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     for name in MARKERS:
         (out / name).unlink(missing_ok=True)

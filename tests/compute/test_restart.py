@@ -1,6 +1,7 @@
 """A run killed mid-way and resumed with --resume ends where an uninterrupted run ends."""
 
 import csv
+import json
 import os
 import signal
 import subprocess
@@ -223,3 +224,26 @@ def test_sigterm_stops_after_the_step_with_a_checkpoint(tmp_path):
     assert resumed.returncode == 0, resumed.stderr
     steps = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1, usecols=1)
     assert stopped_at < steps[-1] and np.array_equal(steps, np.arange(1, steps[-1] + 1))
+
+
+def test_resume_from_a_history_older_than_the_checkpoint_says_which_steps_are_missing(tmp_path):
+    """A history copied before the flush that precedes a checkpoint (a folder added to git while
+    its run writes it) lacks the last steps before the checkpoint: the run goes on from the
+    checkpoint, the log names the missing steps and summary.json counts the run's steps by number
+    and lists the gap (the per-stage sums cannot include those rows)."""
+    scene = _scene(tmp_path / "scene")
+    out = tmp_path / "out"
+    first = run(scene, out, log=lambda m: None)
+    with np.load(out / "checkpoint" / "state.npz") as d:
+        at = int(d["scalars"][1])
+    assert at == first.step > 60
+    with open(out / "history.csv", newline="") as fh:
+        lines = fh.readlines()
+    (out / "history.csv").write_text("".join(lines[:1 + at - 20]))  # rows 1 .. at - 20: 20 rows short
+    logged = []
+    resumed = run(scene, out, resume=True, log=logged.append)
+    assert resumed.step == at
+    assert any(f"no rows for steps {at - 19}-{at}" in m for m in logged), logged
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps"] == at and summary["history_missing_steps"] == [[at - 19, at]]
+    assert sum(s["steps"] for s in summary["stages"]) == at - 20
