@@ -48,7 +48,7 @@ class Model:
         self.friction = scene.friction
         self.skin = scene.solver.skin
         kinds = {g.kind for g in self.groups if len(g)}
-        self.families = families_of(kinds)
+        self.families = families_of(kinds, scene.solver.rigid_soft_rows)
         self.node_dof0 = self.walls.dofs.stop
         self.soft_ids = np.concatenate([np.zeros(0, np.int64)] + [g.ids for g in self.soft])
         self.soft_material = np.concatenate([np.zeros(0, np.int64)] + [np.full(g.B, g.material) for g in self.soft])

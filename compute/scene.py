@@ -77,6 +77,7 @@ class Solver:
     newton_tolerance: float
     newton_max_iterations: int
     contact: str  # contact solver: "auto", "nlgs", "block" or "nlgs_block" (compute.solvers.for_scene)
+    rigid_soft_rows: str  # "nodes" or "nodes_and_segments" (compute.contact.soft_rows, segment-disk)
 
 
 @dataclass(frozen=True)

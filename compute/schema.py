@@ -145,6 +145,8 @@ SOLVER = (
     Key("newton_max_iterations", "int", "Newton iterations per step attempt", low=1, high=1000, default=20),
     Key("contact", "str", "contact solver (auto: nlgs without soft bodies, block for one soft body alone, "
         "else nlgs_block)", options=("auto", "nlgs", "block", "nlgs_block"), default="auto"),
+    Key("rigid_soft_rows", "str", "rigid disks against soft boundaries: kept off the soft nodes, or off the nodes "
+        "and the boundary segments between them", options=("nodes", "nodes_and_segments"), default="nodes"),
 )
 
 OUTPUT = (

@@ -29,8 +29,10 @@ from compute.contact.soft_rows import (
     near_segment_nodes,
     near_wall_nodes,
     node_disk_rows,
+    near_segment_disks,
     node_segment_rows,
     node_wall_rows,
+    segment_disk_rows,
 )
 
 
@@ -142,6 +144,21 @@ def _node_disk_rows(model, q, pairs, centres):
     return _node_body_pairs(model, c, pairs, r.ids[pairs[:, 1]], r.material[pairs[:, 1]], centres)
 
 
+def _segment_disk_candidates(model, q, broad, skin):
+    body_disks = broad.select(True, False, broad.pairs)
+    return near_segment_disks(body_disks, model.soft_nodes(q), model.loop_nodes, model.loop_start,
+                              np.ascontiguousarray(model.rigid.centres(q)), model.rigid.radii, skin)
+
+
+def _segment_disk_rows(model, q, pairs, centres):
+    r = model.rigid
+    c = ContactRows.empty(len(pairs))
+    segment_disk_rows(pairs, model.soft_nodes(q), model.node_dof0, model.loop_neighbours,
+                      np.ascontiguousarray(r.centres(q)), r.radii, r.dof_of(), c.dof, c.hn, c.ht, c.gap, c.normal,
+                      c.point)
+    return _node_body_pairs(model, c, pairs, r.ids[pairs[:, 1]], r.material[pairs[:, 1]], centres)
+
+
 def _node_segment_candidates(model, q, broad, skin):
     body_pairs = broad.select(True, True, broad.pairs)
     return near_segment_nodes(body_pairs, model.soft_nodes(q), model.loop_nodes, model.loop_start,
@@ -175,10 +192,15 @@ REGISTRY = (
     Family("disk_wall", ("rigid", "wall"), _disk_wall_candidates, _disk_wall_rows),
     Family("node_wall", ("soft", "wall"), _node_wall_candidates, _node_wall_rows),
     Family("node_disk", ("soft", "rigid"), _node_disk_candidates, _node_disk_rows),
+    Family("segment_disk", ("soft", "rigid"), _segment_disk_candidates, _segment_disk_rows),
     Family("node_segment", ("soft", "soft"), _node_segment_candidates, _node_segment_rows),
 )
 
 
-def families_of(kinds: set[str]) -> tuple[Family, ...]:
-    """The families whose two kinds are both present in a model with body kinds ``kinds``."""
-    return tuple(f for f in REGISTRY if set(f.kinds) <= kinds)
+OPTIONAL = {"segment_disk": "nodes_and_segments"}  # family -> the solver.rigid_soft_rows that asks for it
+
+
+def families_of(kinds: set[str], rigid_soft_rows: str = "nodes") -> tuple[Family, ...]:
+    """The families whose two kinds are both present in a model with body kinds ``kinds``; the
+    optional ones (``OPTIONAL``) only with the scene's ``rigid_soft_rows`` that asks for them."""
+    return tuple(f for f in REGISTRY if set(f.kinds) <= kinds and OPTIONAL.get(f.name, rigid_soft_rows) == rigid_soft_rows)

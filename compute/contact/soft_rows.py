@@ -1,4 +1,5 @@
-"""Contact rows of deformable boundaries (numba kernels): node-wall, node-disk, node-segment.
+"""Contact rows of deformable boundaries (numba kernels): node-wall, node-disk, segment-disk,
+node-segment.
 
 Conventions of :mod:`compute.contact.rows`: body i is the *candidate* (the deformable body
 owning the boundary node), body j the *antagonist* (a wall, a rigid disk, or the deformable body
@@ -25,17 +26,29 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   of the box in a T3 mixture at P/E = 1), and at high pressure a disk can wedge through a
   stretched boundary segment into the body (1500-disk T3 mixtures at P/E = 1: disks 1.5–2
   segment lengths deep; frictionless ones fail there on the elements it inverts;
-  benchmarks/overlaps.py lists them). Rows of the disk against the segments' interiors (as
-  well as these) were tried and not adopted, as measured on the 144-disk kappa = 0.5, mu = 0.2
-  program P/E = 0.01 ... 1: with T6 it did not come to rest at P/E = 0.03 (kinetic energy
-  steady at 1.8e-5 for 3800 steps; 440 steps for the whole program without them); with T3 it
-  completed in 657 steps against 324, with the overlap gone at P/E = 1 (3e-5 of the box
-  against 4.8e-3, deepest disk 0.016 segment against 0.30) and φ lower from the first stage
-  on (0.8093 against 0.8115; 0.9385 against 0.9504 at P/E = 1, 0.9456 without the overlap).
-  A disk on one straight segment has no rolling resistance and the segment tilts under it.
-  They carried the 1500-disk T3 kappa = 0.2, mu = 0 run through P/E = 1, where it fails
-  without them; which of the two is nearer the converged mesh is not measured
-  (benchmarks/experiments/README.md, with the patch).
+  benchmarks/overlaps.py lists them). The scene's ``solver.rigid_soft_rows =
+  "nodes_and_segments"`` adds the segment-disk rows below, which keep the disk off the
+  segments too.
+- segment-disk ``(g, d)``, g the loop node that starts a boundary segment (the segment g -> its
+  next loop node), d a local rigid-disk index: the disk against the segment's interior, which
+  node-disk rows cannot see (a disk pressed into a soft boundary between two nodes would
+  overlap the body's polygon by a circular segment). With xi the projection of x_d on the
+  segment: for 0 <= xi <= 1, n = the segment's outward normal and gap = (x_d - x_p) . n - r_d,
+  x_p = (1 - xi) x_g + xi x_next; otherwise xi is clamped and the row is the node-disk row of
+  that end node (a redundant contact, not a wrong one). dofs (g x, y, next x, y, disk x, y,
+  rotation) with weights (-(1 - xi), -xi, 1); the disk's contact point is x_d - r_d n. The
+  candidates are the segments whose projection falls within the skin of [0, 1] with the disk
+  in front of them. Only with ``solver.rigid_soft_rows = "nodes_and_segments"``, because of what
+  they cost (benchmarks/experiments/README.md): unlike the node-disk gap, which is convex in
+  the positions so that its linearisation over a step can only under-predict it, this gap is
+  not: a segment that turns by an angle a within a step brings it closer than predicted by
+  about r_d a² / 2. On the 144-disk T6 mixture at P/E = 0.1 the half-edges next to pressed
+  disks turn by 0.04–0.1 rad at every step, and every step starts with a few hundred rows
+  1.5–2e-3 inside (about the sagitta of a half-edge on such a disk; node-disk rows: 3e-5)
+  that the next step pushes out: the packing creeps and a stage does not end (T6), or takes
+  twice the steps (T3, 144 disks: 657 against 324; benchmarks/segment_gap_linearisation.py). What they buy: at P/E = 1 no overlap of rigid and
+  soft bodies (3e-5 of the box against 4.8e-3) and no wedged disk, where frictionless T3
+  mixtures with rigid disks fail with node-disk rows alone (1500 disks, kappa = 0.2).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);
@@ -96,6 +109,45 @@ def node_disk_rows(pairs, x, node_dof0, centres, radii, disk_dof0, dof, hn, ht, 
         ht[c, 0], ht[c, 1] = -tx, -ty
         hn[c, 2], hn[c, 3], hn[c, 4] = nx, ny, 0.0
         ht[c, 2], ht[c, 3], ht[c, 4] = tx, ty, -radii[d]
+
+
+@numba.njit(cache=True)
+def segment_disk_rows(pairs, x, node_dof0, loop_neighbours, centres, radii, disk_dof0, dof, hn, ht, gap, normal,
+                      point):
+    """Rows of (segment start node g, rigid disk d) pairs (m, 2); the segment ends at g's next
+    loop node ``loop_neighbours[g, 1]``; disk d has dofs disk_dof0[d] + (0, 1, 2)."""
+    for c in range(pairs.shape[0]):
+        g, d = pairs[c, 0], pairs[c, 1]
+        b = loop_neighbours[g, 1]
+        ex, ey = x[b, 0] - x[g, 0], x[b, 1] - x[g, 1]
+        xi = ((centres[d, 0] - x[g, 0]) * ex + (centres[d, 1] - x[g, 1]) * ey) / (ex * ex + ey * ey)
+        if 0.0 <= xi <= 1.0:
+            length = np.sqrt(ex * ex + ey * ey)
+            nx, ny = ey / length, -ex / length  # outward normal of the CCW loop, from body i to the disk
+            qx, qy = x[g, 0] + xi * ex, x[g, 1] + xi * ey
+            gg = (centres[d, 0] - qx) * nx + (centres[d, 1] - qy) * ny - radii[d]
+        else:
+            xi = min(max(xi, 0.0), 1.0)
+            qx, qy = x[g, 0] + xi * ex, x[g, 1] + xi * ey
+            dx, dy = centres[d, 0] - qx, centres[d, 1] - qy
+            dist = np.sqrt(dx * dx + dy * dy)
+            nx, ny = dx / dist, dy / dist
+            gg = dist - radii[d]
+        tx, ty = -ny, nx
+        gap[c] = gg
+        normal[c, 0], normal[c, 1] = nx, ny
+        point[c, 0] = qx + 0.5 * gg * nx
+        point[c, 1] = qy + 0.5 * gg * ny
+        k1, k2 = node_dof0 + 2 * g, node_dof0 + 2 * b
+        dof[c, 0], dof[c, 1], dof[c, 2], dof[c, 3] = k1, k1 + 1, k2, k2 + 1
+        for m in range(3):
+            dof[c, 4 + m] = disk_dof0[d] + m
+        hn[c, 0], hn[c, 1] = -(1.0 - xi) * nx, -(1.0 - xi) * ny
+        ht[c, 0], ht[c, 1] = -(1.0 - xi) * tx, -(1.0 - xi) * ty
+        hn[c, 2], hn[c, 3] = -xi * nx, -xi * ny
+        ht[c, 2], ht[c, 3] = -xi * tx, -xi * ty
+        hn[c, 4], hn[c, 5], hn[c, 6] = nx, ny, 0.0
+        ht[c, 4], ht[c, 5], ht[c, 6] = tx, ty, -radii[d]
 
 
 @numba.njit(cache=True, inline="always")
@@ -249,6 +301,33 @@ def near_disk_nodes(body_disks, x, loop_nodes, loop_start, centres, radii, skin)
             dy = x[g, 1] - centres[d, 1]
             if np.sqrt(dx * dx + dy * dy) - radii[d] < skin:
                 out[m, 0], out[m, 1] = g, d
+                m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True)
+def near_segment_disks(body_disks, x, loop_nodes, loop_start, centres, radii, skin):
+    """(segment start node, disk) pairs (m, 2) for the body-level candidates ``body_disks`` (p, 2)
+    = (deformable index k, disk d): every boundary segment of k that has disk d's centre in
+    front of it (outward side), within ``skin`` of the disk's surface, and projecting within
+    ``skin`` of the segment's ends."""
+    size = 0
+    for p in range(body_disks.shape[0]):
+        k = body_disks[p, 0]
+        size += loop_start[k + 1] - loop_start[k]
+    out = np.empty((size, 2), np.int64)
+    m = 0
+    for p in range(body_disks.shape[0]):
+        k, d = body_disks[p, 0], body_disks[p, 1]
+        start, n_loop = loop_start[k], loop_start[k + 1] - loop_start[k]
+        for s in range(n_loop):
+            a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
+            ex, ey = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1]
+            length = np.sqrt(ex * ex + ey * ey)
+            along = ((centres[d, 0] - x[a, 0]) * ex + (centres[d, 1] - x[a, 1]) * ey) / length
+            front = ((centres[d, 0] - x[a, 0]) * ey - (centres[d, 1] - x[a, 1]) * ex) / length
+            if -skin <= along <= length + skin and 0.0 < front < radii[d] + skin:
+                out[m, 0], out[m, 1] = a, d
                 m += 1
     return out[:m]
 
