@@ -146,7 +146,9 @@ SOLVER = (
     Key("contact", "str", "contact solver (auto: nlgs without soft bodies, block for one soft body alone, "
         "else nlgs_block)", options=("auto", "nlgs", "block", "nlgs_block"), default="auto"),
     Key("rigid_soft_rows", "str", "rigid disks against soft boundaries: kept off the soft nodes, or off the nodes "
-        "and the boundary segments between them", options=("nodes", "nodes_and_segments"), default="nodes"),
+        "and the boundary segments between them (measured with T3; with T6 the half-edges under pressed disks "
+        "oscillate and stages may not end: benchmarks/experiments/README.md)", options=("nodes", "nodes_and_segments"),
+        default="nodes"),
 )
 
 OUTPUT = (
