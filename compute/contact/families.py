@@ -26,10 +26,10 @@ from compute.contact import broadphase
 from compute.contact.rows import WALL_AXES, WALL_NORMALS, ContactRows, disk_disk_rows, disk_wall_rows
 from compute.contact.soft_rows import (
     near_disk_nodes,
+    near_segment_disks,
     near_segment_nodes,
     near_wall_nodes,
     node_disk_rows,
-    near_segment_disks,
     node_segment_rows,
     node_wall_rows,
     segment_disk_rows,
@@ -203,4 +203,5 @@ OPTIONAL = {"segment_disk": "nodes_and_segments"}  # family -> the solver.rigid_
 def families_of(kinds: set[str], rigid_soft_rows: str = "nodes") -> tuple[Family, ...]:
     """The families whose two kinds are both present in a model with body kinds ``kinds``; the
     optional ones (``OPTIONAL``) only with the scene's ``rigid_soft_rows`` that asks for them."""
-    return tuple(f for f in REGISTRY if set(f.kinds) <= kinds and OPTIONAL.get(f.name, rigid_soft_rows) == rigid_soft_rows)
+    return tuple(f for f in REGISTRY
+                 if set(f.kinds) <= kinds and OPTIONAL.get(f.name, rigid_soft_rows) == rigid_soft_rows)

@@ -42,13 +42,16 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   they cost (benchmarks/experiments/README.md): unlike the node-disk gap, which is convex in
   the positions so that its linearisation over a step can only under-predict it, this gap is
   not: a segment that turns by an angle a within a step brings it closer than predicted by
-  about r_d a² / 2. On the 144-disk T6 mixture at P/E = 0.1 the half-edges next to pressed
-  disks turn by 0.04–0.1 rad at every step, and every step starts with a few hundred rows
-  1.5–2e-3 inside (about the sagitta of a half-edge on such a disk; node-disk rows: 3e-5)
-  that the next step pushes out: the packing creeps and a stage does not end (T6), or takes
-  twice the steps (T3, 144 disks: 657 against 324; benchmarks/segment_gap_linearisation.py). What they buy: at P/E = 1 no overlap of rigid and
-  soft bodies (3e-5 of the box against 4.8e-3) and no wedged disk, where frictionless T3
-  mixtures with rigid disks fail with node-disk rows alone (1500 disks, kappa = 0.2).
+  about r_d a² / 2. On the 144-disk T6 mixture at P/E = 0.1 the half-edges under pressed
+  disks turn back and forth by 0.04–0.1 rad at every step (a period-2 oscillation), every step
+  starts with a few hundred rows 1.5–2e-3 inside (node-disk rows: 3e-5) that the next step
+  pushes out, and the packing creeps: a stage does not end. With T3 there is no such
+  oscillation, but the 144-disk program takes twice the steps (657 against 324).
+  benchmarks/segment_gap_linearisation.py and benchmarks/experiments/README.md have the
+  measurements. What they buy: at P/E = 1 no overlap of rigid and soft bodies (3e-5 of the box
+  against 4.8e-3) and no wedged disk, where frictionless T3 mixtures with rigid disks fail with
+  node-disk rows alone (1500 disks: kappa = 0.2 and 0.5 failed at P/E = 1, kappa = 0.8 had
+  disks two segment lengths deep).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);
