@@ -262,15 +262,22 @@ def node_segment_rows(cand, x, node_dof0, loop_nodes, loop_start, loop_neighbour
 # ------------------------------------------------------------------------ node-level candidates
 
 
+@numba.njit(cache=True, inline="always")
+def _loop_total(body_pairs, loop_start):
+    """The number of boundary-loop nodes of the bodies ``body_pairs[:, 0]`` (p, >= 1), counted
+    once per pair: the most candidates a pair list can give."""
+    size = 0
+    for p in range(body_pairs.shape[0]):
+        k = body_pairs[p, 0]
+        size += loop_start[k + 1] - loop_start[k]
+    return size
+
+
 @numba.njit(cache=True)
 def near_wall_nodes(body_walls, x, loop_nodes, loop_start, bounds, normals, skin):
     """(node, wall) pairs (m, 2) of the boundary nodes of body k within ``skin`` of wall w, for
     the body-level candidates ``body_walls`` (p, 2) = (deformable index k, wall w)."""
-    size = 0
-    for p in range(body_walls.shape[0]):
-        k = body_walls[p, 0]
-        size += loop_start[k + 1] - loop_start[k]
-    out = np.empty((size, 2), np.int64)
+    out = np.empty((_loop_total(body_walls, loop_start), 2), np.int64)
     m = 0
     for p in range(body_walls.shape[0]):
         k, w = body_walls[p, 0], body_walls[p, 1]
@@ -290,11 +297,7 @@ def near_wall_nodes(body_walls, x, loop_nodes, loop_start, bounds, normals, skin
 def near_disk_nodes(body_disks, x, loop_nodes, loop_start, centres, radii, skin):
     """(node, disk) pairs (m, 2) of the boundary nodes of body k within ``skin`` of rigid disk
     d, for the body-level candidates ``body_disks`` (p, 2) = (deformable index k, disk d)."""
-    size = 0
-    for p in range(body_disks.shape[0]):
-        k = body_disks[p, 0]
-        size += loop_start[k + 1] - loop_start[k]
-    out = np.empty((size, 2), np.int64)
+    out = np.empty((_loop_total(body_disks, loop_start), 2), np.int64)
     m = 0
     for p in range(body_disks.shape[0]):
         k, d = body_disks[p, 0], body_disks[p, 1]
@@ -314,11 +317,7 @@ def near_segment_disks(body_disks, x, loop_nodes, loop_start, centres, radii, sk
     = (deformable index k, disk d): every boundary segment of k that has disk d's centre in
     front of it (outward side), within ``skin`` of the disk's surface, and projecting within
     ``skin`` of the segment's ends."""
-    size = 0
-    for p in range(body_disks.shape[0]):
-        k = body_disks[p, 0]
-        size += loop_start[k + 1] - loop_start[k]
-    out = np.empty((size, 2), np.int64)
+    out = np.empty((_loop_total(body_disks, loop_start), 2), np.int64)
     m = 0
     for p in range(body_disks.shape[0]):
         k, d = body_disks[p, 0], body_disks[p, 1]
