@@ -6,9 +6,10 @@ after the step is never below the prediction; the segment-disk gap (the disk aga
 line) is not, and a segment that turns by an angle a within the step brings the disk closer
 than predicted by about r a² / 2. For each of --steps steps from a run's checkpoint this prints
 the segment-disk rows that end the step more than --depth inside, the largest turn of a segment
-near a contact, and, for the first of those rows, (after - predicted) against -r a² / 2.
+near a contact, and, for the first of those rows, (after - predicted) against -r a² / 2 (not for
+a step taken in sub-steps: each has its own rows).
 
-    python benchmarks/segment_gap_linearisation.py --scene SCENE --run OUT --pressure 0.1 --steps 4
+    python benchmarks/segment_gap_linearisation.py --scene SCENE --run OUT --pressure 0.1 --steps 4 [--contact-tolerance 1e-6]
 
 SCENE must have solver.rigid_soft_rows = "nodes_and_segments"; OUT is a copy of its output
 folder with a checkpoint (it is copied again to a temporary folder, so OUT is not changed).
@@ -17,6 +18,7 @@ folder with a checkpoint (it is copied again to a temporary folder, so OUT is no
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shutil
 import tempfile
 from pathlib import Path
@@ -31,8 +33,10 @@ def main() -> None:
     ap.add_argument("--pressure", type=float, required=True, help="the stage's pressure")
     ap.add_argument("--steps", type=int, default=4)
     ap.add_argument("--depth", type=float, default=5e-4)
+    ap.add_argument("--contact-tolerance", type=float, help="the contact solvers' tolerance instead of the scene's")
     args = ap.parse_args()
 
+    from compute import solvers
     from compute.contact import detection
     from compute.run import Run
 
@@ -40,6 +44,8 @@ def main() -> None:
     shutil.copytree(args.run, out)
     run = Run(args.scene, out, resume=True, log=lambda m: None)
     m, st = run.model, run.state
+    if args.contact_tolerance:
+        run.stepper.solver = solvers.for_model(dataclasses.replace(m.scene.solver, nlgs_tolerance=args.contact_tolerance), m)
     fam = next((f for f in m.families if f.name == "segment_disk"), None)
     if fam is None:
         raise SystemExit(f"{args.scene}: solver.rigid_soft_rows is not \"nodes_and_segments\"")
@@ -60,6 +66,8 @@ def main() -> None:
         r = m.rigid.radii[pairs[:, 1]]
         first = (f"{turn[deep[0]]:.3f}, {after.gap[deep[0]] - predicted[deep[0]]:.2e}, "
                  f"{-r[deep[0]] * turn[deep[0]] ** 2 / 2:.2e}") if deep.size else "–"
+        if rep.sub_steps > 1:  # rows and velocities of the last sub-step: no prediction of the whole step
+            first = f"– (taken in {rep.sub_steps} sub-steps)"
         print(f"| {st.step} | {len(pairs)} | {deep.size} | {after.gap.min():.2e} | {turn[near].max():.3f} | {first} |")
     shutil.rmtree(out.parent)
 

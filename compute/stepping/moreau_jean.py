@@ -36,7 +36,7 @@ class StepReport:
     sweeps: int
     residual: float
     n_contacts: int  # contacts carrying a positive normal impulse
-    max_penetration: float  # max(-gap) at the start of the step, >= 0
+    max_penetration: float  # max(-gap) at the start of the step (of a cut step: of any sub-step), >= 0
     contacts: ContactRows
     newton_iterations: int = 1
     cuts: int = 0

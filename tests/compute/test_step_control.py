@@ -15,8 +15,8 @@ class ScriptedAttempt:
     """Accepts a sub-step of size h when h <= ``largest(step)`` (step: the step being taken, from
     1); records every h it was asked for."""
 
-    def __init__(self, largest):
-        self.largest, self.asked = largest, []
+    def __init__(self, largest, penetration=lambda sub_step: 0.0):
+        self.largest, self.asked, self.penetration = largest, [], penetration
         self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
 
     def __call__(self, state, h, deepest):
@@ -28,8 +28,9 @@ class ScriptedAttempt:
         if h > self.largest(self.step_index) + 1e-15:
             raise StepFailure(f"too large a step (h = {h})")
         impulse = np.full((1, 2), h)  # an impulse proportional to its sub-step
-        return SimpleNamespace(h=h, sweeps=9, residual=1e-9, newton_iterations=2, cuts=0,
-                               contacts=SimpleNamespace(impulse=impulse))
+        sub_step = self.asked[::-1].index("|")  # attempts 1, 2, ... within the step
+        return SimpleNamespace(h=h, sweeps=9, residual=1e-9 * sub_step, newton_iterations=2, cuts=0,
+                               max_penetration=self.penetration(sub_step), contacts=SimpleNamespace(impulse=impulse))
 
 
 def take(attempt, state, steps, h=1.0, max_cuts=4):
@@ -70,6 +71,18 @@ def test_failure_at_the_kept_depth_cuts_further():
     assert steps[0].split() == ["1.0", "0.5", "0.5"]
     assert steps[1].split() == ["0.5", "0.25"] + ["0.125"] * 8
     assert state.cut_depth == 3
+
+
+def test_a_cut_step_reports_the_deepest_penetration_and_largest_residual_of_its_sub_steps():
+    """Taken in four quarters, a step whose first quarter starts 2e-3 inside and whose last starts
+    1e-6 inside reports 2e-3 (the last sub-step alone would hide it), and the largest residual."""
+    attempt = ScriptedAttempt(lambda step: 0.25, penetration=lambda sub_step: {3: 2e-3}.get(sub_step, 1e-6))
+    state = State(np.zeros(1), np.zeros(1))
+    rep, = take(attempt, state, 1)
+    asked = attempt.asked[1:]
+    assert asked == [1.0, 0.5, 0.25, 0.25, 0.25, 0.25]  # attempts 3..6 are the accepted quarters
+    assert rep.sub_steps == 4 and rep.max_penetration == 2e-3
+    assert rep.residual == pytest.approx(6e-9)
 
 
 def test_impulses_are_rescaled_to_the_whole_step():
@@ -149,7 +162,7 @@ class CostlyAttempt:
         self.stats["nlgs_sweeps"] += sweeps
         state.time += h
         state.step += 1
-        return SimpleNamespace(h=h, sweeps=sweeps, residual=1e-9, newton_iterations=its, cuts=0,
+        return SimpleNamespace(h=h, sweeps=sweeps, residual=1e-9, newton_iterations=its, cuts=0, max_penetration=0.0,
                                contacts=SimpleNamespace(impulse=np.zeros((1, 2))))
 
 
