@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-# The small default: the whole study (4 kappa x 2 mu, one seed) in about 10 minutes on 2 cores
-# (measured: README.md).
+# The small default: the whole study (4 kappa x 2 mu, one seed) to P/E = 1 in 7 stages (the
+# program of the 1500-disk runs), a few minutes on 2 cores (measured: README.md).
 DEFAULTS = {"n": 30, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
-            "p_min": 1e-3, "p_max": 0.3, "stages": 6}
+            "p_min": 1e-3, "p_max": 1.0, "stages": 7}
 
 
 def run_name(kappa: float, mu: float, seed: int) -> str:
