@@ -225,3 +225,27 @@ def test_an_overflow_mid_run_stops_with_a_diagnosis(scene, tmp_path, monkeypatch
     assert "numerical overflow" in (tmp_path / "out" / "FAILED").read_text()
     steps = np.loadtxt(tmp_path / "out" / "history.csv", delimiter=",", skiprows=1, usecols=1)
     assert np.array_equal(steps, np.arange(1, 8))  # what was computed before is kept
+
+
+@pytest.mark.parametrize("elements", [92, 184])
+def test_a_soft_disk_touching_a_rigid_one_is_not_an_overlap(tmp_path, elements):
+    """A meshed disk of radius 0.5 and a rigid one whose centres are exactly 1 apart touch: the
+    scene is valid for any mesh, e.g. 184 asked elements (181 triangles), whose bounding box is
+    not centred on the circle (its middle is 1.5e-3 off towards the rigid disk, three times the
+    overlap the check tolerates). Brought 0.01 closer, they overlap and the scene is refused."""
+    from pre.mesh import reference_disk_mesh
+    from pre.scene import contact_laws, neo_hookean_material, rigid_material
+
+    mesh = reference_disk_mesh(elements, "T3")
+    points, cells = 0.5 * np.asarray(mesh.points)[:, :2] + (1.5, 2.0), np.asarray(mesh.cells)
+    params = default_parameters((0, 4, 0, 4), 0.2, 1.0, [1.0])
+    params["materials"] = {"rigid": rigid_material(1.0), "soft": neo_hookean_material("T3")}
+    params["interactions"] = contact_laws(["rigid", "soft"], 0.2)
+    for gap, valid in ((0.0, True), (-0.01, False)):
+        folder = tmp_path / f"gap{gap}"
+        write_scene(folder, params, [(1.5, 2.0), (2.5 + gap, 2.0)], [0.5, 0.5], ["soft", "rigid"],
+                    meshes={0: (points, cells, "T3")})
+        if valid:
+            read_scene(folder)
+        else:
+            _expect(folder, "bodies.vtu", "points/radius", "non-overlapping bodies")
