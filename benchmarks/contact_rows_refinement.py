@@ -59,6 +59,7 @@ def main() -> None:
     ap.add_argument("--element", choices=("T3", "T6"), default="T3")
     ap.add_argument("--elements", type=int, nargs="+", default=[92, 368, 1472])
     ap.add_argument("--pressures", type=float, nargs="+", default=[0.01, 0.03, 0.1, 0.3, 1.0])
+    ap.add_argument("--rows", nargs="+", choices=ROWS, default=list(ROWS), help="the formulations to run")
     a = ap.parse_args()
     sys.path.insert(0, str(ROOT))
     RESULTS.mkdir(exist_ok=True)
@@ -66,7 +67,7 @@ def main() -> None:
     record_file, table_file = RESULTS / f"{stem}.json", RESULTS / f"{stem}.md"
     record = json.loads(record_file.read_text()) if record_file.is_file() else {}
     for elements in a.elements:
-        for rows in ROWS:
+        for rows in a.rows:
             key = f"{a.element}x{elements}_{rows}"
             scene, out = prepare(Path(a.workdir) / key, a, elements, rows)
             entry = record.setdefault(key, {"sessions": []})
