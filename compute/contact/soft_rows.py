@@ -51,7 +51,11 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   measurements. What they buy: at P/E = 1 no overlap of rigid and soft bodies (3e-5 of the box
   against 4.8e-3) and no wedged disk, where frictionless T3 mixtures with rigid disks fail with
   node-disk rows alone (1500 disks: kappa = 0.2 and 0.5 failed at P/E = 1, kappa = 0.8 had
-  disks two segment lengths deep).
+  disks two segment lengths deep). What they cost in accuracy on a coarse mesh: the disk cannot sink
+  into a straight segment until both its nodes move, so a 20-node boundary is stiffer against
+  it than the body it stands for; on the 144-disk mixture at P/E = 1 φ is 0.010–0.012 below the
+  value both formulations approach as the mesh is refined, where node rows' φ less their
+  overlap is within 0.005 (benchmarks/contact_rows_refinement.py).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);
