@@ -64,6 +64,22 @@ def soft_residual_and_matrix(g, v, h, theta, stabilised: bool):
     return residual, k
 
 
+def rotation_columns(model, n: int):
+    """(n, B) sparse: for each soft body the column M_b ρ_b, ρ_b its rigid rotation field about
+    its centroid at x_n, so that column b ᵀ v is body b's angular momentum about that centroid."""
+    columns = []
+    for g in model.soft:
+        x = g._x_n  # (B, n_nodes, 2)
+        arm = x - x.mean(axis=1, keepdims=True)
+        rho = np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(g.B, -1)
+        m_rho = g.batch.mass_times(rho)
+        for b in range(g.B):
+            col = np.zeros(n)
+            col[g.dofs.start + g.batch.n_dof * b:g.dofs.start + g.batch.n_dof * (b + 1)] = m_rho[b]
+            columns.append(col)
+    return sp.csr_matrix(np.array(columns).T) if columns else sp.csr_matrix((n, 0))
+
+
 def make_solve_step(options):
     """A replacement of compute.stepping.newton.solve_step (same signature and results)."""
     from compute.errors import StepFailure
@@ -91,6 +107,9 @@ def make_solve_step(options):
         H = sp.csr_matrix((contacts.hn.ravel()[keep], (contacts.dof.ravel()[keep],
                            np.repeat(np.arange(nc), contacts.dof.shape[1])[keep])), shape=(n, nc))
 
+        R = rotation_columns(model, n) if options.hold_rotation else sp.csr_matrix((n, 0))
+        lam = np.zeros(R.shape[1])
+
         def evaluate(v, stabilised, with_matrix=True):
             """F(v) (n,) and, if with_matrix, J (n, n) sparse."""
             F, rows, cols, vals = np.zeros(n), [], [], []
@@ -110,10 +129,11 @@ def make_solve_step(options):
                 return F, None
             return F, sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
 
-        def merit(v, r):
-            F = evaluate(v, False, with_matrix=False)[0] - H @ r
+        def merit(v, r, lam):
+            F = evaluate(v, False, with_matrix=False)[0] - H @ r - R @ lam
             c_min = np.minimum(r, c * (H.T @ v + g_term))
-            return float(F @ F + c_min @ c_min)
+            spin = R.T @ v
+            return float(F @ F + c_min @ c_min + spin @ spin)
 
         r = contacts.impulse[:, 0].copy()
         c, err = None, np.inf
@@ -126,26 +146,28 @@ def make_solve_step(options):
             u = H.T @ v + g_term
             active = (r > 0.0) if (it == 1 and options.active_set == "warm" and np.any(r > 0.0)) else (r - c * u > 0.0)
             A = np.flatnonzero(active)
-            kkt = sp.bmat([[J, -H[:, A]], [H[:, A].T, None]], format="csc")
-            solution = spla.spsolve(kkt, np.concatenate([-F, -u[A]]))
+            k = R.shape[1]
+            kkt = sp.bmat([[J, -H[:, A], -R], [H[:, A].T, None, None], [R.T, None, None]], format="csc")
+            solution = spla.spsolve(kkt, np.concatenate([-F, -u[A], -(R.T @ v)]))
             if not np.all(np.isfinite(solution)):
                 raise StepFailure(f"singular KKT system at iteration {it}")
             dv, r_new = solution[:n], np.zeros(nc)
-            r_new[A] = solution[n:]
+            r_new[A] = solution[n:n + len(A)]
+            lam_new = solution[n + len(A):n + len(A) + k]
             if options.line_search:
-                m0, dr, a = merit(v, r), r_new - r, 1.0
+                m0, dr, dl, a = merit(v, r, lam), r_new - r, lam_new - lam, 1.0
                 while a > 1e-3:
                     try:
                         newton._admissible(model, v, v + a * dv, h, stats)
-                        if merit(v + a * dv, r + a * dr) <= (1.0 - 1e-4 * a) * m0:
+                        if merit(v + a * dv, r + a * dr, lam + a * dl) <= (1.0 - 1e-4 * a) * m0:
                             break
                     except StepFailure:
                         pass
                     a *= 0.5
-                dv, r_new = a * dv, r + a * dr
+                dv, r_new, lam_new = a * dv, r + a * dr, lam + a * dl
             v_new = newton._admissible(model, v, v + dv, h, stats)
             err = h * theta * float(np.max(np.abs(v_new - v)))
-            v, r = v_new, r_new
+            v, r, lam = v_new, r_new, lam_new
             if err <= tol and np.all(H.T @ v + g_term >= -tol / (h * theta)):
                 break
         else:
@@ -181,6 +203,8 @@ def main() -> None:
     ap.add_argument("--hybrid-switch", type=float, default=1e-4,
                     help="hybrid: the stabilised matrix while the last correction exceeds this")
     ap.add_argument("--no-line-search", dest="line_search", action="store_false")
+    ap.add_argument("--hold-rotation", action="store_true",
+                    help="each soft body's angular momentum about its centroid held at zero (a multiplier)")
     a = ap.parse_args()
     import compute.stepping.moreau_jean as moreau_jean
     from compute.errors import SimulationError
