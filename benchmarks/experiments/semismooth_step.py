@@ -20,7 +20,11 @@ the question is the number of iterations). The step control, load control and st
 the toolkit's.
 
     python benchmarks/experiments/semismooth_step.py SCENE OUT [--active-set predicted|warm]
-        [--matrix exact|stabilised|hybrid] [--hybrid-switch 1e-4] [--no-line-search]
+        [--matrix exact|stabilised|hybrid] [--hybrid-switch 1e-4] [--no-line-search] [--hold-rotation]
+
+--hold-rotation adds one equality row per soft body, its angular momentum about its centroid at
+x_n (M ρ · v, ρ the rigid rotation field) held at zero by a multiplier: the rotation that
+frictionless walls leave undetermined.
 
 SCENE from `python -m studies.single_particle.pre --workdir W` (W/scene). Prints the steps,
 Newton iterations and sub-steps per stage and the equilibrated φ, read from OUT/history.csv.
