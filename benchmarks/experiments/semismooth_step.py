@@ -48,24 +48,26 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 
 
-def soft_residual_and_matrix(g, v, h, theta, stabilised: bool):
-    """R (B, 2n) and M + h²θ² K_t (B, nnz) of soft group g at velocities v; without the
-    volumetric geometric stiffness if ``stabilised``."""
+def soft_residual_and_matrix(g, v, h, theta, stabilised: bool, with_matrix: bool = True):
+    """R (B, 2n) and, if ``with_matrix``, M + h²θ² K_t (B, nnz) of soft group g at velocities v
+    (else None); without the volumetric geometric stiffness if ``stabilised``."""
     from compute.errors import StepFailure
 
     b = g.batch
     vb = v[g.dofs].reshape(g.B, -1)
     x_theta, _ = g.positions(vb)
-    f, k, every = np.zeros((g.B, b.n_dof)), np.zeros_like(b.mass_data), np.ones(g.B, bool)
-    if not b.internal_force_and_tangent(x_theta, every, f, k).all():
+    f, every = np.zeros((g.B, b.n_dof)), np.ones(g.B, bool)
+    k = np.zeros_like(b.mass_data) if with_matrix else None
+    ok = b.internal_force_and_tangent(x_theta, every, f, k) if with_matrix else b.internal_force(x_theta, every, f)
+    if not ok.all():
         raise StepFailure("inverted element at x_theta")
-    residual = b.mass_times(vb - g._v_n) + h * f - h * g._gravity[1]
-    b.effective_matrix(k, (h * theta) ** 2, every)
-    if stabilised:
-        geometric = np.zeros_like(b.mass_data)
-        b.volumetric_geometric(x_theta, every, geometric)
-        k -= (h * theta) ** 2 * geometric
-    return residual, k
+    if with_matrix:
+        b.effective_matrix(k, (h * theta) ** 2, every)
+        if stabilised:
+            geometric = np.zeros_like(b.mass_data)
+            b.volumetric_geometric(x_theta, every, geometric)
+            k -= (h * theta) ** 2 * geometric
+    return g.residual(vb, f), k
 
 
 def rotation_columns(model, n: int):
@@ -122,8 +124,10 @@ def make_solve_step(options):
                 F[dofs] = m_hat * (v[dofs] - v_free[dofs])
                 rows.append(dofs), cols.append(dofs), vals.append(m_hat)
             for g in model.soft:
-                res, k = soft_residual_and_matrix(g, v, h, theta, stabilised)
+                res, k = soft_residual_and_matrix(g, v, h, theta, stabilised, with_matrix)
                 F[g.dofs] = res.ravel()
+                if not with_matrix:
+                    continue
                 b = g.batch
                 local_rows = np.repeat(np.arange(b.n_dof), np.diff(b.indptr))
                 for i in range(g.B):

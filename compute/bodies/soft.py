@@ -114,7 +114,7 @@ class SoftBodies:
             if not ok.all():
                 b = int(np.flatnonzero(~ok)[0])
                 raise StepFailure(self._inverted(b, x_theta, "x_theta"))
-            residual = batch.mass_times(vb - self._v_n) + h * f - h * self._gravity[1]
+            residual = self.residual(vb, f)
             if not np.isfinite(residual[active]).all():
                 b = int(np.flatnonzero(active & ~np.isfinite(residual).all(axis=1))[0])
                 raise StepFailure(f"body {self.ids[b]}: non-finite internal forces (Newton iteration {self.iteration})")
@@ -141,6 +141,11 @@ class SoftBodies:
                 step = self.matrices.solve(residual, active)
             self._v_free[active] = vb[active] - step[active]
         out[self.dofs] = self._v_free.ravel()
+
+    def residual(self, vb: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """R_b(v) = M_b (v - v⁻) + h f_int - h M_b g (B, 2n) of every body, for its velocities
+        vb (B, 2n) and internal forces f (B, 2n) at x_θ (module docstring)."""
+        return self.batch.mass_times(vb - self._v_n) + self._h * f - self._h * self._gravity[1]
 
     def factorisation_stamp(self) -> int:
         """Changes whenever some body of the group refactorises (compliance blocks to redo)."""
