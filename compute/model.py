@@ -73,7 +73,8 @@ class Model:
             mat = scene.materials[scene.material_names[m]]
             try:
                 g = SoftBodies([d.body for d in bodies], np.stack([d.points for d in bodies]), bodies[0].cells, element,
-                               NeoHookean(mat.young, mat.poisson, mat.density), mat.volumetric, m, dof0, node0)
+                               NeoHookean(mat.young, mat.poisson, mat.density), mat.volumetric, m, dof0, node0,
+                               scene.solver.hold_rotation)
             except ValueError as exc:
                 raise SceneError(scene.path / "bodies.vtu", f"cells of the bodies {[d.body for d in bodies][:10]}",
                                  "valid counter-clockwise disk meshes", str(exc)) from None

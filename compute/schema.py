@@ -149,6 +149,9 @@ SOLVER = (
         "and the boundary segments between them (measured with T3; with T6 the half-edges under pressed disks "
         "oscillate and stages may not end: benchmarks/experiments/README.md)", options=("nodes", "nodes_and_segments"),
         default="nodes"),
+    Key("hold_rotation", "bool", "hold each soft body's angular momentum about its centroid at zero (a torque "
+        "multiplier): removes the rigid rotation that frictionless contacts leave free and that pressure makes "
+        "unstable (compute/bodies/soft.py); not for scenes where soft bodies should turn", default=False),
 )
 
 OUTPUT = (

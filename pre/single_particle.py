@@ -8,7 +8,10 @@ density 1.
 Quasi-static settings (measured, studies/single_particle/README.md): θ = 1 (backward Euler: a
 step tends to an implicit static step with contact), h = 10, walls of the disk's mass, no wall
 damping; a stage is equilibrated when φ changes by less than 1e-5 (relative) over
-``check_every`` = 2 steps and the walls' inertial number is below 1e-4.
+``check_every`` = 2 steps and the walls' inertial number is below 1e-4. The disk's rigid
+rotation is held (``solver.hold_rotation``): nothing else holds it between frictionless walls,
+and the compressive loads make it unstable; free, the disk rolls by 20-30 degrees one way or
+the other depending on h, and φ with it by up to 6e-4 (studies/single_particle/README.md).
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ import numpy as np
 
 # The default soft disk: T6, standard volumetric term, a target of 100 triangles (101: 21
 # boundary segments). Measured against the converged refinement (studies/single_particle/README.md,
-# "The best T6 disk near 92 elements"): within 0.0015 in phi_p at every stage up to P/E = 0.4,
+# "The best T6 disk near 92 elements"): within 0.0015 in phi_p at every stage up to P/E = 0.4
+# (0.0018 with the rotation held),
 # where the paper's 92 triangles (20 segments) are 0.0057 off: with a number of segments divisible
 # by 4 each wall presses a face and boundary nodes join the contact in symmetric pairs, so the curve
 # climbs in larger stairs.
@@ -38,7 +42,7 @@ def parameters(pressures, *, element: str, volumetric: str, time_step: float, th
         pressures=[float(p) for p in pressures], phi_tolerance=phi_tolerance, inertial_tolerance=1e-4,
         check_every=check_every, max_steps_per_stage=max_steps, gravity=[0.0, 0.0],
         time_step=time_step, theta=theta, nlgs_tolerance=nlgs_tolerance, nlgs_max_sweeps=20000, relaxation=1.0,
-        skin=0.05, newton_tolerance=newton_tolerance, newton_max_iterations=40,
+        skin=0.05, newton_tolerance=newton_tolerance, newton_max_iterations=40, hold_rotation=True,
         frames="stages", every_steps=0, checkpoint_every_steps=1000)
 
 

@@ -10,7 +10,18 @@ size h with θ, for every body b and the Newton iterate v of its end-of-step vel
     v_free,b = v - M̂_b⁻¹ R_b(v)                      (the body's free velocity at this iterate)
     v_b = v_free,b + M̂_b⁻¹ (H r)_b                     (interior recovery after the contact solve)
 
-At convergence R_b(v) = (H r)_b exactly, whatever matrix the iterations used. The factorised
+At convergence R_b(v) = (H r)_b exactly, whatever matrix the iterations used.
+
+With ``hold_rotation`` (the scene's ``solver.hold_rotation``) each body's angular momentum about
+its centroid at x_n is held at zero by a multiplier λ_b (a torque), c_b = M_b ρ_b with ρ_b the
+rigid rotation field about that centroid:
+
+    R_b(v) = (H r)_b + c_b λ_b,     c_bᵀ v = 0
+
+(NewtonMatrices.hold: the solves and compliance blocks become those of the bordered system).
+It removes the one mode that frictionless contacts leave free, the rigid rotation of a pressed
+body, which its compressive loads make unstable: without it the iteration needs a stabilised
+matrix and converges linearly; with it the exact M̂ is definite on what is left. The factorised
 matrices live in :class:`~compute.bodies.soft_matrix.NewtonMatrices`. Bodies whose own correction
 fell below the Newton tolerance are *settled*: their residual, tangent and factorisation are
 not recomputed in the following iterations of the step (a chord step for them; the free velocity
@@ -41,7 +52,7 @@ class SoftBodies:
     REFACTOR_CHANGE = 0.05  # refactorise when max |M̂ - M̂_factorised| > this x max |M̂_factorised|
 
     def __init__(self, ids, X, cells, element: str, material, volumetric: str, material_index: int,
-                 dof0: int, node0: int):
+                 dof0: int, node0: int, hold_rotation: bool = False):
         self.ids = np.asarray(ids, np.int64)
         self.batch = BodyBatch(np.asarray(X, float), cells, element, material, volumetric)
         self.matrices = None  # NewtonMatrices, built at the first step (not needed for measures)
@@ -54,6 +65,7 @@ class SoftBodies:
         self.loop_start = nb * np.arange(self.B + 1)
         self._gravity = None
         self._v_free = None
+        self.hold_rotation = hold_rotation
 
     def __len__(self) -> int:
         return self.B
@@ -77,6 +89,8 @@ class SoftBodies:
         self._x_n = self.nodes(q).copy()
         self._v_n = v[self.dofs].reshape(self.B, -1).copy()
         self._j_n = self.batch.jacobians(self._x_n)
+        if self.hold_rotation:
+            self.matrices.hold(self.rotation_momenta(self._x_n))
         if self._v_free is None:
             self._v_free = np.zeros_like(self._v_n)
             self._f = np.zeros_like(self._v_n)  # work arrays of the Newton iterations
@@ -138,7 +152,7 @@ class SoftBodies:
             self._stale = active & ~refactored
             self._force[:] = False
             with TIMES("solves"):
-                step = self.matrices.solve(residual, active)
+                step = self.matrices.solve(residual, active, vb)
             self._v_free[active] = vb[active] - step[active]
         out[self.dofs] = self._v_free.ravel()
 
@@ -146,6 +160,13 @@ class SoftBodies:
         """R_b(v) = M_b (v - v⁻) + h f_int - h M_b g (B, 2n) of every body, for its velocities
         vb (B, 2n) and internal forces f (B, 2n) at x_θ (module docstring)."""
         return self.batch.mass_times(vb - self._v_n) + self._h * f - self._h * self._gravity[1]
+
+    def rotation_momenta(self, x: np.ndarray) -> np.ndarray:
+        """c_b = M_b ρ_b (B, 2n): ρ_b the rigid rotation field of body b about its centroid in
+        positions x (B, n, 2), so that c_bᵀ v_b is its angular momentum about that centroid."""
+        arm = x - self.batch.centroids(x)[:, None, :]
+        rho = np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
+        return self.batch.mass_times(rho)
 
     def factorisation_stamp(self) -> int:
         """Changes whenever some body of the group refactorises (compliance blocks to redo)."""

@@ -16,6 +16,17 @@ factorisations, solves and compliance blocks for all bodies at once. Per body:
   level its last factorisation ended with (same h, θ).
 - Compliance blocks C_b = E_bᵀ M̂_b⁻¹ E_b on the dofs contacts touch are recomputed only for bodies
   whose factorisation or contact dofs changed.
+- A held direction (:meth:`NewtonMatrices.hold`): with c_b (n,) held, each body's velocities
+  are restricted to c_bᵀ v = 0 by a multiplier λ_b, and the matrices stand for the compliance of
+  the bordered system [M̂ −c; cᵀ 0] instead of M̂⁻¹ (a rank-one update, z = M̂⁻¹ c, s = cᵀ z):
+
+      G = M̂⁻¹ − z zᵀ / s,      Newton step: v − G R(v) − z (cᵀ v) / s   (whose cᵀ v is 0)
+
+  G = Z (Zᵀ M̂ Z)⁻¹ Zᵀ for a basis Z of the velocities with cᵀ v = 0, so the Delassus operator
+  HᵀGH is positive semi-definite exactly when Zᵀ M̂ Z is positive definite, which by the inertia
+  of the bordered matrix (Haynsworth) is: no negative pivot, or one negative pivot and s < 0.
+  A factorisation is accepted on that test: a pressed body whose only unstable mode is its rigid
+  rotation keeps its exact M̂ (a full Newton step) instead of falling back to level 1.
 """
 
 from __future__ import annotations
@@ -61,6 +72,10 @@ class NewtonMatrices:
         m = batch.material
         self._unit = m.mu / (m.density * radius2)  # μ / (ρ R²) (B,)
         self._blocks = None  # (start, dofs, versions, values) of the last compliance blocks
+        self.held = None  # c (B, n) of hold(), or None
+        self._z = np.zeros((B, n))  # M̂⁻¹ c of the kept factorisations
+        self._s = np.ones(B)  # cᵀ M̂⁻¹ c
+        self.negative = np.zeros(B, np.int64)  # negative pivots of the kept factorisations
         self.factorizations = 0
         self.stabilised = 0
 
@@ -98,7 +113,9 @@ class NewtonMatrices:
                     values[trying] += shift[trying, None] * self.batch.mass_data[trying]
             negative = self.symbolic.factorize(values, trying, self.lx, self.d)
             self.factorizations += int(trying.sum())
-            done = trying & (negative == 0)
+            self._bordered(trying & ((negative == 0) | (negative == 1)))
+            done = trying & self._definite(negative)
+            self.negative[done] = negative[done]
             self.level[done] = level
             if level > 0:
                 self.stabilised += int(done.sum())
@@ -115,6 +132,29 @@ class NewtonMatrices:
         self.key = key
         return need
 
+    def hold(self, c: np.ndarray | None) -> None:
+        """Hold the direction c_b (B, n) of every body from now on (module docstring), or no
+        direction (None). Kept factorisations that are not definite on the new held subspace
+        become invalid (the next update refactorises them); every compliance block changes."""
+        self.held = None if c is None else np.ascontiguousarray(c, dtype=np.float64)
+        self._bordered(self.valid)
+        self.valid &= self._definite(self.negative)
+        self.version += 1
+
+    def _bordered(self, bodies: np.ndarray) -> None:
+        """z = M̂⁻¹ c and s = cᵀ z of the held direction for ``bodies`` (B,) from their current
+        factors (nothing without a hold)."""
+        if self.held is not None and bodies.any():
+            self.symbolic.solve(self.lx, self.d, self.held, bodies, self._z)
+            self._s[bodies] = np.einsum("ij,ij->i", self.held[bodies], self._z[bodies])
+
+    def _definite(self, negative: np.ndarray) -> np.ndarray:
+        """(B,) whether each factorisation with ``negative`` pivots is positive definite on the
+        velocities it acts on: all of them, or with a hold those with cᵀ v = 0 (module docstring)."""
+        if self.held is None:
+            return negative == 0
+        return (negative == 0) | ((negative == 1) & (self._s < 0.0))
+
     def forget(self) -> None:
         """Drop every kept factorisation, level and compliance block: the next update starts as
         a new group does (what a run resumed from a checkpoint starts from)."""
@@ -122,10 +162,17 @@ class NewtonMatrices:
         self.key = None
         self._blocks = None
 
-    def solve(self, rhs: np.ndarray, active: np.ndarray) -> np.ndarray:
-        """M̂_b⁻¹ rhs_b (B, n) for the active bodies (zeros elsewhere)."""
+    def solve(self, rhs: np.ndarray, active: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """M̂_b⁻¹ rhs_b (B, n) for the active bodies (zeros elsewhere); with a hold G rhs_b, plus
+        z (cᵀ v_b) / s if velocities ``v`` (B, n) are given, so that v − solve(R(v), v) is the
+        Newton step's end with cᵀ v = 0 (module docstring)."""
         out = np.zeros_like(rhs)
         self.symbolic.solve(self.lx, self.d, rhs, active, out)
+        if self.held is not None:
+            ct = np.einsum("ij,ij->i", self._z, rhs)
+            if v is not None:
+                ct -= np.einsum("ij,ij->i", self.held, v)
+            out -= np.where(active, ct / self._s, 0.0)[:, None] * self._z
         return out
 
     def compliance(self, start: np.ndarray, dofs: np.ndarray) -> np.ndarray:
@@ -142,6 +189,8 @@ class NewtonMatrices:
             recompute &= ~kept
         if recompute.any():
             self.symbolic.compliance(self.lx, self.d, start, dofs, recompute, values)
+            if self.held is not None:
+                _subtract_outer(recompute, start, dofs, offsets, self._z, 1.0 / self._s, values)
         self._blocks = (start, dofs, self.version.copy(), values)
         return values
 
@@ -175,6 +224,19 @@ def _same_segments(start, dofs, old_start, old_dofs):
                 break
         out[b] = same
     return out
+
+
+@numba.njit(cache=True)
+def _subtract_outer(bodies, start, dofs, offsets, z, weight, values):
+    """Block b of ``values`` -= weight_b z_b[d] z_b[d]ᵀ, d = dofs[start[b]:start[b + 1]], for the
+    bodies with bodies[b] (the rank-one part of a held compliance block)."""
+    for b in range(bodies.shape[0]):
+        if bodies[b]:
+            m = start[b + 1] - start[b]
+            for i in range(m):
+                zi = weight[b] * z[b, dofs[start[b] + i]]
+                for j in range(m):
+                    values[offsets[b] + i * m + j] -= zi * z[b, dofs[start[b] + j]]
 
 
 @numba.njit(cache=True)

@@ -30,6 +30,7 @@ import csv
 import json
 import subprocess
 import sys
+import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -164,6 +165,8 @@ def main(argv=None) -> int:
             if k in curves:
                 settings = (f"pre settings of the graded series: {a.graded_stages} stages, h = {GRADED_TIME_STEP:g}"
                             if k[2] else "default pre settings")
+                if tomllib.loads((dirs[k] / "scene" / "scene.toml").read_text())["solver"]["hold_rotation"]:
+                    settings += ", rigid rotation held"
                 write_curve(Path(a.data) / name, *curves[k],
                             f"single-particle curve, T6 {soft_material(dirs[k] / 'scene')['volumetric'].replace('_', ' ')}, "
                             f"{counts[k]} elements"

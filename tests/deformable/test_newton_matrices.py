@@ -92,6 +92,65 @@ def check_blocks(nm, dofs, mats):
         np.testing.assert_allclose(block, expected, rtol=1e-8, atol=1e-9 * np.abs(expected).max(initial=0.0))
 
 
+def level_matrices(batch, data, g, key, shifts):
+    """(B, levels, n, n) dense matrices of every stabilisation level (module docstring of soft_matrix)."""
+    h, theta = key
+    unit = MATERIAL.mu / (MATERIAL.density * batch.reference_areas.sum(axis=1) / np.pi)
+    return np.array([[dense(batch, m[None])[0] for m in
+                      [data[b], data[b] - g[b]] + [data[b] - g[b] + s * (h * theta) ** 2 * unit[b] * batch.mass_data[b]
+                                                   for s in shifts]] for b in range(batch.B)])
+
+
+def null_basis(c):
+    """(n, n - 1) orthonormal basis of the vectors w with cᵀ w = 0."""
+    q, _ = np.linalg.qr(np.column_stack([c, np.eye(c.size)]))
+    return q[:, 1:]
+
+
+def test_held_rotation_matches_the_dense_bordered_system(pressed):
+    """With each body's rigid rotation held (c = M ρ), the level kept is the first whose matrix A
+    is positive definite on cᵀ w = 0 (eigenvalues of Zᵀ A Z, dense); solves give the dense KKT
+    solution [A −c; cᵀ 0] [Δ; λ] = [−R; −cᵀ v]; compliance blocks are those of Z (Zᵀ A Z)⁻¹ Zᵀ; a
+    new held direction invalidates the kept factorisations not definite on it."""
+    batch, data, g, key = pressed
+    arm = batch.X - batch.centroids(batch.X)[:, None, :]
+    c = batch.mass_times(np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(batch.B, -1))
+    mats = level_matrices(batch, data, g, key, NewtonMatrices.SHIFTS)
+    Z = [null_basis(c[b]) for b in range(batch.B)]
+    definite = np.array([[np.linalg.eigvalsh(Z[b].T @ a @ Z[b]).min() > 0.0 for a in mats[b]] for b in range(batch.B)])
+    levels = definite.argmax(axis=1)
+    assert (levels < expected_level(batch, data, g, key, NewtonMatrices.SHIFTS)).any()  # the hold matters here
+
+    nm = NewtonMatrices(batch)
+    every = np.ones(batch.B, bool)
+    nm.hold(c)
+    nm.update(data, lambda mask: g, key, 0.05, np.zeros(batch.B, bool), every)
+    assert nm.level.tolist() == levels.tolist()
+    held = [mats[b, lev] for b, lev in enumerate(levels)]
+    rng = np.random.default_rng(2)
+    rhs, v = rng.normal(size=(2, batch.B, batch.n_dof))
+    end = v - nm.solve(rhs, every, v)
+    n = batch.n_dof
+    for b in range(batch.B):
+        kkt = np.block([[held[b], -c[b][:, None]], [c[b][None, :], np.zeros((1, 1))]])
+        expected = v[b] + np.linalg.solve(kkt, np.concatenate([-rhs[b], [-c[b] @ v[b]]]))[:n]
+        np.testing.assert_allclose(end[b], expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    dofs = [np.array([0, 1, 7, 40]), np.array([3]), np.array([], int), np.array([5, 6, 100, 101, 300])]
+    start = np.concatenate([[0], np.cumsum([len(d) for d in dofs])])
+    values = nm.compliance(start, np.concatenate(dofs))
+    offsets = np.concatenate([[0], np.cumsum([len(d) ** 2 for d in dofs])])
+    for b, d in enumerate(dofs):
+        G = Z[b] @ np.linalg.solve(Z[b].T @ held[b] @ Z[b], Z[b].T)
+        block = values[offsets[b]:offsets[b + 1]].reshape(len(d), len(d))
+        np.testing.assert_allclose(block, G[np.ix_(d, d)], rtol=1e-7, atol=1e-9 * np.abs(G).max())
+
+    other = batch.mass_times(np.tile([1.0, 0.3], (batch.B, batch.n_nodes)))  # a translation held instead
+    nm.hold(other)
+    still = [np.linalg.eigvalsh(null_basis(other[b]).T @ held[b] @ null_basis(other[b])).min() > 0.0
+             for b in range(batch.B)]
+    assert nm.valid.tolist() == still and not all(still)
+
+
 def test_reuse_rule(pressed):
     """A kept factorisation survives a small change (below the limit, same h), not a larger one,
     nor a new h, nor a forced refactorisation."""

@@ -8,8 +8,13 @@ made by studies/single_particle/refine.py (studies/single_particle/data/):
   elements, mean dilatation; 14 stages, P/E <= 0.4): phi_p within 0.002 at every one of its
   stages, the accuracy the default mesh was chosen for. The refinement justifies it: this curve
   moves by at most 2e-5 in phi_p to the 960-segment level and the standard volumetric term at
-  480 segments is within 1.5e-4 of it (README, "Convergence"); the default mesh lies 0.0015 from
+  480 segments is within 1.5e-4 of it (README, "Convergence"); the default mesh lies 0.0018 from
   it, the former default (92 elements) 0.0057.
+
+The default scene holds the disk's rigid rotation (solver.hold_rotation): its curve is then the
+same within 1e-6 at h = 8, 10 and 12, where the free disk rolled by -23, +27 and +25 degrees
+and its curve differed by up to 6e-4 between those h (and lay 0.0015 from the reference at h =
+10).
 """
 
 import csv
