@@ -5,7 +5,8 @@ this same script), one thread, one JSON line per case (--json appends them to a 
 
 - ``single``: the single-particle study's default scene (16 stages to P/E = 1) at the time
   steps --single-h; the iteration counts of this scene jump by tens of percent with h (the
-  body's rigid rotation is unstable under the load and held by nothing), so several h are run;
+  body's rigid rotation is unstable under the load), so several h are run; ``single_free``: the
+  same with the rotation free (--single-free, checkouts that hold it by default);
 - ``three``: three soft T3 disks pressed by the walls with friction 0.3, contact tolerance 1e-3,
   Newton tolerance 1e-9 (tests/deformable/test_newton_residual.py's scene), 8 steps at each
   time step --three-h;
@@ -24,6 +25,7 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import csv  # noqa: E402
 import io  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
@@ -35,7 +37,8 @@ import checkout  # noqa: E402
 
 
 def run_folder(scene: Path, out: Path) -> dict:
-    """Run a scene's loading program; counts, wall time, end status and final φ."""
+    """Run a scene's loading program; counts, wall time, end status, final φ and the last φ of
+    every stage (``stage_phi``)."""
     from compute.errors import SimulationError
     from compute.progress import Display
     from compute.run import Run
@@ -50,7 +53,16 @@ def run_folder(scene: Path, out: Path) -> dict:
     s = run.stepper.stats
     return {"steps": state.step, "newton_iterations": s["newton_iterations"], "contact_sweeps": s["nlgs_sweeps"],
             "cuts": s["cuts"], "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6),
-            "end": end}
+            "end": end, "stage_phi": stage_phi(out)}
+
+
+def stage_phi(out: Path) -> list[float]:
+    """φ at the last step of every stage of OUT/history.csv (the equilibrated φ of the ended ones)."""
+    last = {}
+    with open(out / "history.csv") as f:
+        for row in csv.DictReader(f):
+            last[int(row["stage"])] = round(float(row["phi"]), 7)
+    return [last[s] for s in sorted(last)]
 
 
 def three_disks(folder: Path, h: float, steps: int = 8) -> dict:
@@ -72,6 +84,7 @@ def three_disks(folder: Path, h: float, steps: int = 8) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--single-h", type=float, nargs="*", default=[8.0, 9.0, 10.0, 11.0, 12.0])
+    ap.add_argument("--single-free", type=float, nargs="*", default=[], help="time steps of single_free")
     ap.add_argument("--three-h", type=float, nargs="*", default=[0.5, 1.0, 2.0])
     ap.add_argument("--program", type=Path, nargs="*", default=[], help="scene folders run through their program")
     ap.add_argument("--label", default="")
@@ -86,6 +99,8 @@ def main() -> None:
         tmp = Path(tmp)
         cases = [("single", h, lambda h=h: run_folder(write(tmp / f"single{h}", time_step=h), tmp / f"single{h}_out"))
                  for h in a.single_h]
+        cases += [("single_free", h, lambda h=h: run_folder(write(tmp / f"free{h}", time_step=h, hold_rotation=False),
+                                                           tmp / f"free{h}_out")) for h in a.single_free]
         cases += [("three", h, lambda h=h: three_disks(tmp / f"three{h}", h)) for h in a.three_h]
         cases += [("program", str(p), lambda p=p: run_folder(p.resolve(), tmp / f"program{k}"))
                   for k, p in enumerate(a.program)]
