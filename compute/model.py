@@ -46,6 +46,10 @@ class Model:
         self.groups = [self.rigid, self.walls, *self.soft]
         self.n_dofs = self.groups[-1].dofs.stop
         self.friction = scene.friction
+        # steps by the active-set Newton (compute.stepping.active_set): one soft body, its rotation
+        # held, alone with the walls, no friction (its contact problem is one small dense block)
+        self.active_set_newton = bool(scene.solver.hold_rotation and len(scene.deformable) == 1
+                                      and not np.any(~self.rigid.fixed) and not np.any(scene.friction))
         self.skin = scene.solver.skin
         kinds = {g.kind for g in self.groups if len(g)}
         self.families = families_of(kinds, scene.solver.rigid_soft_rows)

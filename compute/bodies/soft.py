@@ -21,7 +21,10 @@ rigid rotation field about that centroid:
 (NewtonMatrices.hold: the solves and compliance blocks become those of the bordered system).
 It removes the one mode that frictionless contacts leave free, the rigid rotation of a pressed
 body, which its compressive loads make unstable: without it the iteration needs a stabilised
-matrix and converges linearly; with it the exact M̂ is definite on what is left. The factorised
+matrix and converges linearly; with it the exact M̂ is definite on what is left.
+
+A step solved by compute.stepping.active_set (``use_indefinite``) takes the exact M̂ even
+where the boundary's wrinkling modes make it indefinite: the active contacts hold them. The factorised
 matrices live in :class:`~compute.bodies.soft_matrix.NewtonMatrices`. Bodies whose own correction
 fell below the Newton tolerance are *settled*: their residual, tangent and factorisation are
 not recomputed in the following iterations of the step (a chord step for them; the free velocity
@@ -156,6 +159,17 @@ class SoftBodies:
             self._v_free[active] = vb[active] - step[active]
         out[self.dofs] = self._v_free.ravel()
 
+    def momentum_residual(self, v: np.ndarray) -> np.ndarray:
+        """R_b(v) (B, 2n) of every body at velocities v (n_dofs,), its internal forces evaluated
+        at x_θ (no tangent, nothing kept); raises StepFailure where an element inverts."""
+        vb = v[self.dofs].reshape(self.B, -1)
+        x_theta, _ = self.positions(vb)
+        f = np.zeros_like(vb)
+        ok = self.batch.internal_force(x_theta, np.ones(self.B, bool), f)
+        if not ok.all():
+            raise StepFailure(self._inverted(int(np.flatnonzero(~ok)[0]), x_theta, "x_theta"))
+        return self.residual(vb, f)
+
     def residual(self, vb: np.ndarray, f: np.ndarray) -> np.ndarray:
         """R_b(v) = M_b (v - v⁻) + h f_int - h M_b g (B, 2n) of every body, for its velocities
         vb (B, 2n) and internal forces f (B, 2n) at x_θ (module docstring)."""
@@ -168,6 +182,19 @@ class SoftBodies:
         rho = np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
         return self.batch.mass_times(rho)
 
+    def use_indefinite(self, on: bool) -> None:
+        """Whether the next factorisations may be indefinite (NewtonMatrices.set_indefinite)."""
+        self.matrices.set_indefinite(on)
+
+    def indefinite(self) -> np.ndarray:
+        """(B,) bodies whose kept factorisation is an indefinite exact M̂ (use_indefinite)."""
+        return self.matrices.indefinite() if self.matrices is not None else np.zeros(self.B, bool)
+
+    def expected_negative(self) -> int:
+        """Negative eigenvalues the active Delassus operator must have from this group's bodies
+        for the Newton step to be definite on the constraints (NewtonMatrices.expected_negative)."""
+        return int(self.matrices.expected_negative()[self.indefinite()].sum())
+
     def factorisation_stamp(self) -> int:
         """Changes whenever some body of the group refactorises (compliance blocks to redo)."""
         return int(self.matrices.version.sum())
@@ -176,6 +203,11 @@ class SoftBodies:
         """Start the next step without reused factorisations (see Stepper.restart_point)."""
         if self.matrices is not None:
             self.matrices.forget()
+
+    def refresh(self) -> None:
+        """The next free_velocity assembles the tangent and refactorises every unsettled body
+        (a full Newton iteration, not a chord one with a kept factorisation)."""
+        self._force[:] = True
 
     def contraction_was_slow(self) -> None:
         """The last iteration contracted the correction too little: the bodies that kept an old
@@ -200,8 +232,9 @@ class SoftBodies:
         start = np.searchsorted(local, n * np.arange(self.B + 1)).astype(np.int64)
         values = self.matrices.compliance(start, (local % n).astype(np.int64))
         diag = _block_diagonals(start, values)
-        if not np.all(diag > 0.0):
-            b = int(np.searchsorted(start, np.flatnonzero(~(diag > 0.0))[0], side="right") - 1)
+        bad = ~(diag > 0.0) & ~np.repeat(self.matrices.indefinite(), np.diff(start))  # those are checked later
+        if bad.any():
+            b = int(np.searchsorted(start, np.flatnonzero(bad)[0], side="right") - 1)
             raise StepFailure(f"body {self.ids[b]}: effective matrix M + h^2 theta^2 K_t not positive definite on "
                               f"its contact dofs (Newton iteration {self.iteration}, h = {self._h:.4g})")
         return start, dofs, values

@@ -27,6 +27,13 @@ factorisations, solves and compliance blocks for all bodies at once. Per body:
   of the bordered matrix (Haynsworth) is: no negative pivot, or one negative pivot and s < 0.
   A factorisation is accepted on that test: a pressed body whose only unstable mode is its rigid
   rotation keeps its exact M̂ (a full Newton step) instead of falling back to level 1.
+- Indefinite exact matrices (``set_indefinite``, by the caller for a step attempt): the exact
+  M̂ is kept with negative pivots (level 0, none zero). A pressed body's boundary nodes wrinkle
+  (the volumetric geometric stiffness) in modes its active contacts hold: the Newton step is
+  then that of the KKT system [M̂ −C; Cᵀ 0], C the held direction and the active contact rows,
+  which the caller solves on the contacts (compute.stepping.active_set) and whose definiteness
+  on Cᵀ v = 0 it checks: the active Delassus block must have ``expected_negative()`` negative
+  eigenvalues (the same Haynsworth count).
 """
 
 from __future__ import annotations
@@ -76,6 +83,7 @@ class NewtonMatrices:
         self._z = np.zeros((B, n))  # M̂⁻¹ c of the kept factorisations
         self._s = np.ones(B)  # cᵀ M̂⁻¹ c
         self.negative = np.zeros(B, np.int64)  # negative pivots of the kept factorisations
+        self.allow_indefinite = False
         self.factorizations = 0
         self.stabilised = 0
 
@@ -113,8 +121,10 @@ class NewtonMatrices:
                     values[trying] += shift[trying, None] * self.batch.mass_data[trying]
             negative = self.symbolic.factorize(values, trying, self.lx, self.d)
             self.factorizations += int(trying.sum())
-            self._bordered(trying & ((negative == 0) | (negative == 1)))
+            self._bordered(trying & (negative >= 0))
             done = trying & self._definite(negative)
+            if level == 0 and self.allow_indefinite:
+                done |= trying & (negative > 0)
             self.negative[done] = negative[done]
             self.level[done] = level
             if level > 0:
@@ -138,8 +148,29 @@ class NewtonMatrices:
         become invalid (the next update refactorises them); every compliance block changes."""
         self.held = None if c is None else np.ascontiguousarray(c, dtype=np.float64)
         self._bordered(self.valid)
-        self.valid &= self._definite(self.negative)
+        self.valid &= self._definite(self.negative) | self.indefinite()
         self.version += 1
+
+    def set_indefinite(self, allowed: bool) -> None:
+        """Allow indefinite exact factorisations from now on (kept ones at a stabilised level are
+        redone from level 0), or no longer (kept indefinite ones are dropped)."""
+        if allowed:
+            self.valid &= self.level == 0
+            self.level[:] = 0
+        else:
+            self.valid &= ~self.indefinite()
+        self.allow_indefinite = allowed
+
+    def indefinite(self) -> np.ndarray:
+        """(B,) bodies whose kept factorisation is an indefinite M̂ (``set_indefinite``)."""
+        return self.valid & (self.level == 0) & (self.negative > 0)
+
+    def expected_negative(self) -> np.ndarray:
+        """(B,) negative eigenvalues the active Delassus block of each body must have for its
+        Newton step to be definite on the constraints (module docstring): its negative pivots,
+        less the one the held direction takes (s < 0)."""
+        held = self.held is not None
+        return np.where(self.valid, self.negative - (held & (self._s < 0.0) & (self.negative > 0)), 0)
 
     def _bordered(self, bodies: np.ndarray) -> None:
         """z = M̂⁻¹ c and s = cᵀ z of the held direction for ``bodies`` (B,) from their current

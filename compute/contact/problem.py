@@ -75,6 +75,22 @@ class ContactProblem:
         return natural_map_error(self.dof, self.hn, self.ht, self.W, self.gap_term, self.mu, self.impulse,
                                  v[self.compliance.order])
 
+    def normal_velocity(self, v: np.ndarray) -> np.ndarray:
+        """ũ_n = H_nᵀ v + gap_term (nc,) for velocities v (n_dofs,): the normal velocity whose
+        sign Signorini's condition reads."""
+        vp = v[self.compliance.order]
+        return self.gap_term + np.sum(self.hn * np.where(self.dof >= 0, vp[self.dof], 0.0), axis=1)
+
+    def normal_delassus(self, rows: np.ndarray) -> np.ndarray:
+        """Dense normal Delassus block (k, k) H_nᵀ M̂⁻¹ H_n of the contacts ``rows`` (k,)."""
+        from compute.solvers.block_gs import block_delassus
+
+        rows = np.asarray(rows, np.int64)
+        k = rows.size
+        wb, _ = block_delassus(rows, np.array([0, k], np.int64), self.dof, self.hn, self.ht,
+                               *self.compliance.arrays())
+        return wb.reshape(2 * k, 2 * k)[0::2, 0::2]
+
     def generalised_impulse(self, n_dofs: int) -> np.ndarray:
         """H r (n_dofs,) of the current impulses."""
         hr = np.zeros(n_dofs)

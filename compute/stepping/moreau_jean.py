@@ -9,7 +9,8 @@ With h the time step and θ ∈ [1/2, 1]:
 1. detection (Verlet lists, rebuilt past the skin) and narrow phase at q_n: rows of H, gaps;
 2. every body group prepares the step (loads, x_n);
 3. rigid disks and walls only: one contact solve with the diagonal compliance; with soft bodies,
-   the Newton loop of :mod:`compute.stepping.newton`;
+   the Newton loop of :mod:`compute.stepping.newton` (one frictionless soft body with its
+   rotation held: the active-set Newton of :mod:`compute.stepping.active_set`);
 4. positions, time, contact memory.
 
 With soft bodies a failing attempt is cut (:mod:`compute.stepping.control`).
@@ -26,7 +27,7 @@ from compute.contact import detection
 from compute.contact.rows import ContactRows
 from compute.errors import SimulationError, StepFailure
 from compute import solvers
-from compute.stepping import control
+from compute.stepping import active_set, control
 from compute.stepping.newton import solve_step
 from compute.timing import TIMES
 
@@ -58,12 +59,15 @@ class Stepper:
         self.newton_tolerance = s.newton_tolerance * model.diameter
         self.newton_max_iterations = s.newton_max_iterations
         self.gravity = tuple(model.scene.loading.gravity)
-        self._counts = {"steps": 0, "newton_iterations": 0, "cuts": 0, "nlgs_sweeps": 0, "backtracks": 0}
+        self._counts = {"steps": 0, "newton_iterations": 0, "cuts": 0, "nlgs_sweeps": 0, "backtracks": 0,
+                        "fallbacks": 0}
 
     @property
     def stats(self) -> dict:
         """Counts since the stepper was made: steps, Newton iterations, cuts, NLGS sweeps,
-        backtracks, and the soft groups' numeric factorisations (all attempts, stabilised ones too)."""
+        backtracks, fallbacks (attempts of the active-set Newton taken again by the fixed-point
+        loop, compute.stepping.active_set), and the soft groups' numeric factorisations (all
+        attempts, stabilised ones too)."""
         return {**self._counts, "factorizations": sum(g.matrices.factorizations for g in self.model.soft if g.matrices),
                 "stabilised_factorizations": sum(g.matrices.stabilised for g in self.model.soft if g.matrices)}
 
@@ -99,8 +103,8 @@ class Stepper:
             g.begin_step(state.q, state.v, h, th, load)
         # linear groups only: one contact solve is exact
         tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if m.nonlinear else (np.inf, 1)
-        v, report, iterations = solve_step(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts,
-                                         misses_fail)
+        solve = active_set.solve_step if m.active_set_newton else solve_step
+        v, report, iterations = solve(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts, misses_fail)
         if not np.all(np.isfinite(v)):
             raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")

@@ -194,17 +194,24 @@ def _admissible(model, v: np.ndarray, v_new: np.ndarray, h: float, stats: dict) 
     body keeps J / J_n within [JACOBIAN_RATIO, 1 / JACOBIAN_RATIO] (a Newton step from a
     linearised contact solution may overshoot a large load increment; no element really changes
     its area that much in one step). Raises StepFailure if none is found."""
-    lo, hi = JACOBIAN_RATIO, 1.0 / JACOBIAN_RATIO
     a = 1.0
     with TIMES("backtracking check"):
         for _ in range(MAX_BACKTRACKS):
             trial = v + a * (v_new - v) if a < 1.0 else v_new
-            bad = next((b for b in (g.area_change(trial, lo, hi) for g in model.soft) if b is not None), None)
+            bad = area_violation(model, trial)
             if bad is None:
                 stats["backtracks"] += a < 1.0
                 return trial
             a *= 0.5
     body, els, r = bad
     raise StepFailure(f"body {body}: {els.size} element(s) {els[:10].tolist()} would change their area by more "
-                      f"than a factor {hi:g} in one step (J/J_n down to {r:.3g}) even after {MAX_BACKTRACKS} "
-                      f"backtracking halvings of the Newton update (h = {h:.4g})")
+                      f"than a factor {1.0 / JACOBIAN_RATIO:g} in one step (J/J_n down to {r:.3g}) even after "
+                      f"{MAX_BACKTRACKS} backtracking halvings of the Newton update (h = {h:.4g})")
+
+
+def area_violation(model, v: np.ndarray):
+    """None if every element of every soft body keeps J / J_n within [JACOBIAN_RATIO,
+    1 / JACOBIAN_RATIO] with velocities v (n_dofs,); else (body id, elements, smallest ratio) of
+    the first body that does not (SoftBodies.area_change)."""
+    lo, hi = JACOBIAN_RATIO, 1.0 / JACOBIAN_RATIO
+    return next((b for b in (g.area_change(v, lo, hi) for g in model.soft) if b is not None), None)

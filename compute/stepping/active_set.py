@@ -1,0 +1,197 @@
+r"""The step of one soft body alone with the walls, frictionless, its rotation held: a semismooth
+Newton on the step's coupled problem (a primal–dual active-set method), the contact conditions
+linearised inside the iteration instead of solved to convergence at every iterate as in
+:mod:`compute.stepping.newton`.
+
+With G the body's compliance bordered by the held rotation (compute.bodies.soft_matrix), per
+iteration k from v⁰ (v⁻ on the body, the free velocity of the walls) and the warm-start
+impulses r⁰:
+
+    v_free = v^k − G R(v^k) − z (cᵀ v^k) / s      (the exact Newton step without contact)
+    ũ = Hᵀ v^k + g̃ / (hθ)                          (normal velocities of the current iterate)
+    A = {i : r_i > 0} at k = 0 (the warm start's contacts), then {i : r_i − ũ_i / |W_ii| > 0}
+    W_AA r̂_A = −(Hᵀ v_free + g̃ / (hθ))_A,  r̂ = 0 off A
+    v̂ = v_free + M̂⁻¹ H r̂                           (G on the body)
+    (v^{k+1}, r^{k+1}) = (v^k, r^k) + a (v̂ − v^k, r̂ − r^k)
+
+The third line is the KKT system [M̂ −c −H_A; cᵀ 0 0; H_Aᵀ 0 0] by its Schur complement on
+the contact rows; the tangent is assembled and factorised at every iteration (SoftBodies.refresh).
+a = 1, 1/2, ... the first step that keeps every element's area change within the safeguard of
+compute.stepping.newton and decreases the merit (Armijo)
+
+    |P (F(v) − H r)|² + |min(r, ũ / |W_ii|)|² + Σ_b (c_bᵀ v_b)² / c_bᵀ c_b,
+
+F the momentum residual of every group (soft: R_b of compute.bodies.soft; walls: m̂ (v − v_free)),
+P the projection off each held direction c_b (the hold's multiplier takes that part). The Newton
+direction descends on it wherever the active set holds; without it, the first iterations of a
+load stage's first step carry the pressed body into ever more unstable states (negative pivots
+2 → 57) and never settle. It ends when hθ |v^{k+1} − v^k|_∞ ≤ tol, the impulses are
+non-negative, the open contacts open (ũ ≥ −tol / (hθ)) and the natural-map error is below the
+contact tolerance.
+
+The exact M̂ is kept where it is indefinite (NewtonMatrices.set_indefinite): a pressed body's
+boundary nodes wrinkle in modes its active contacts hold. The step is accepted only if M̂ is
+positive definite on the velocities the active contacts and the hold leave free: the active
+block W_AA then has exactly ``expected_negative`` negative eigenvalues (Haynsworth's inertia
+theorem on the KKT matrix). A step that fails that check, or does not converge in
+``ITERATIONS``, is taken again by the fixed-point loop of :mod:`compute.stepping.newton` with
+positive definite matrices (counted as ``fallbacks``).
+
+Why: the fixed-point loop needs a positive definite M̂ for its contact solver, so a pressed
+body iterates with a stabilised matrix, a modified Newton that converges linearly; here the
+iteration is Newton's, 2–3 iterations per step once a stage has started (single particle,
+benchmarks/results/active_set_single_particle.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from compute.contact.compliance import Compliance
+from compute.contact.problem import ContactProblem
+from compute.errors import StepFailure
+from compute.solvers import SolveReport
+from compute.stepping import newton
+from compute.timing import TIMES
+
+ITERATIONS = 20  # of one attempt before the fixed-point loop takes over
+SHORT_STEP, SHORT_STEPS = 0.25, 3  # that many consecutive steps shorter than that: stalled, taken over
+
+
+def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: float, max_iterations: int,
+               stats: dict, misses_fail: bool = True):
+    """End-of-step velocities, solve report and Newton iterations, as newton.solve_step (same
+    arguments): by the active-set Newton (module docstring), else by newton.solve_step."""
+    warm = contacts.impulse.copy()
+    for g in model.soft:
+        g.use_indefinite(True)
+    try:
+        return _active_set_newton(model, contacts, v_minus, h, theta, solver.tolerance, tol,
+                                  min(ITERATIONS, max_iterations), stats)
+    except StepFailure:
+        stats["fallbacks"] += 1
+        contacts.impulse[:] = warm
+        for g in model.soft:
+            g.use_indefinite(False)
+        return newton.solve_step(model, contacts, v_minus, h, theta, solver, tol, max_iterations, stats, misses_fail)
+
+
+def _active_set_newton(model, contacts, v_minus, h, theta, contact_tol, tol, max_iterations, stats):
+    n = model.n_dofs
+    diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
+    soft_dofs = newton._contact_dofs(model, contacts)
+    v, v_free = np.zeros(n), np.zeros(n)
+    for g in model.groups:
+        if g.nonlinear:
+            v[g.dofs] = v_minus[g.dofs]
+        else:
+            g.free_velocity(v, v)
+    contacts.impulse[:, 1] = 0.0
+    r = contacts.impulse[:, 0]  # a view: the problem's impulses
+    stamp = None
+    short = 0  # consecutive damped steps
+    merit = None  # of the current iterate, from the last line search
+    for it in range(1, max_iterations + 1):
+        stats["newton_iterations"] += 1
+        stats["nlgs_sweeps"] += 1  # one dense solve on the contacts
+        with TIMES("free velocity"):
+            for g in model.groups:
+                if g.nonlinear:
+                    g.refresh()
+                g.free_velocity(v, v_free)
+        if (new := [g.factorisation_stamp() for g, _ in soft_dofs]) != stamp:
+            with TIMES("compliance"):
+                dense = [g.compliance(d) for g, d in soft_dofs if len(d)]
+                problem = ContactProblem.build(contacts, Compliance.build(n, diagonals, dense), v_free, v_minus,
+                                               h, theta)
+            stamp = new
+        if it == 1:  # |W_ii| of the first iterate: the merit's scale for the whole step
+            scale = np.maximum(np.abs(problem.W[:, 0, 0]), 1e-300)
+        r_old = r.copy()
+        with TIMES("contact solve"):
+            active = np.flatnonzero(r > 0.0 if it == 1 and np.any(r > 0.0) else r - problem.normal_velocity(v) / scale > 0.0)
+            r_hat = np.zeros_like(r)
+            if active.size:
+                try:
+                    r_hat[active] = np.linalg.solve(problem.normal_delassus(active), -problem.normal_velocity(v_free)[active])
+                except np.linalg.LinAlgError:
+                    raise StepFailure(f"singular active Delassus block ({active.size} contacts, iteration {it})") from None
+            r[:] = r_hat
+            v_hat = v_free + newton._compliance_times(model, diagonals, problem.generalised_impulse(n))
+        if not np.all(np.isfinite(v_hat)):
+            raise StepFailure(f"non-finite velocities at active-set iteration {it}")
+        with TIMES("line search"):
+            a, merit = _line_search(model, problem, diagonals, v_free, scale, v, r_old, v_hat, r_hat, merit, stats)
+        short = short + 1 if a < SHORT_STEP else 0
+        if short == SHORT_STEPS:
+            raise StepFailure(f"the active-set Newton stalled: {short} steps shorter than {SHORT_STEP} (iteration {it})")
+        v_new = v + a * (v_hat - v)
+        r[:] = r_old + a * (r_hat - r_old)
+        err = h * theta * float(np.max(np.abs(v_new - v)))
+        v = v_new
+        if err <= tol and np.all(r >= 0.0):
+            contact = problem.error(v)
+            if np.all(problem.normal_velocity(v)[r == 0.0] >= -tol / (h * theta)) and contact <= contact_tol:
+                break
+    else:
+        raise StepFailure(f"the active-set Newton did not converge in {max_iterations} iterations")
+    expected = sum(g.expected_negative() for g in model.soft)
+    if expected and not _negative_eigenvalues(problem, np.flatnonzero(r > 0.0)) == expected:
+        raise StepFailure("the exact Newton matrix is not definite on what the active contacts leave free")
+    return v, SolveReport(v, it, contact), it
+
+
+def _line_search(model, problem, diagonals, v_free, scale, v, r, v_hat, r_hat, m0, stats) -> tuple[float, float]:
+    """The step a (module docstring): the first of 1, 1/2, ..., 1/1024 that keeps the areas and
+    decreases the merit m0 of (v, r) (None: computed here) by 1e-4 a of its value; the last one
+    tried if none does. Returns a and the merit there (None if it was not computed or did not
+    decrease)."""
+    if m0 is None:
+        m0 = _merit(model, problem, diagonals, v_free, scale, v, r)
+    a, m = 1.0, np.inf
+    while a > 1e-3:
+        trial = v + a * (v_hat - v)
+        if newton.area_violation(model, trial) is None:
+            try:
+                m = _merit(model, problem, diagonals, v_free, scale, trial, r + a * (r_hat - r))
+            except StepFailure:  # an inverted element at the trial point
+                m = np.inf
+            if m <= (1.0 - 1e-4 * a) * m0:
+                break
+        a *= 0.5
+    stats["backtracks"] += a < 1.0
+    return a, (m if m <= (1.0 - 1e-4 * a) * m0 else None)
+
+
+def _merit(model, problem, diagonals, v_free, scale, v, r) -> float:
+    """The merit of (v, r) (module docstring); r (nc,) normal impulses. Leaves problem.impulse
+    holding r."""
+    n = model.n_dofs
+    problem.impulse[:, 0] = r
+    f = -problem.generalised_impulse(n)  # −H r, then + F
+    for dofs, inverse_mass in diagonals:
+        moving = inverse_mass > 0.0
+        f[dofs] += np.where(moving, (v[dofs] - v_free[dofs]) / np.where(moving, inverse_mass, 1.0), 0.0)
+        f[dofs] = np.where(moving, f[dofs], 0.0)  # a held wall takes any impulse
+    total = 0.0
+    for g in model.soft:
+        fb = f[g.dofs].reshape(g.B, -1) + g.momentum_residual(v)
+        vb = v[g.dofs].reshape(g.B, -1)
+        c = g.matrices.held
+        if c is not None:
+            cc = np.einsum("ij,ij->i", c, c)
+            fb = fb - (np.einsum("ij,ij->i", c, fb) / cc)[:, None] * c
+            total += float(np.sum(np.einsum("ij,ij->i", c, vb) ** 2 / cc))
+        f[g.dofs] = fb.ravel()
+    complementarity = np.minimum(r, problem.normal_velocity(v) / scale)
+    return total + float(f @ f) + float(complementarity @ complementarity)
+
+
+def _negative_eigenvalues(problem, active: np.ndarray) -> int:
+    """Negative eigenvalues of the active normal Delassus block; -1 if it has a zero one."""
+    if not active.size:
+        return 0
+    e = np.linalg.eigvalsh(problem.normal_delassus(active))
+    if np.abs(e).min() <= 1e-12 * np.abs(e).max():
+        return -1
+    return int(np.count_nonzero(e < 0.0))
