@@ -26,6 +26,7 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
+import inspect  # noqa: E402
 import io  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
@@ -40,11 +41,16 @@ def run_folder(scene: Path, out: Path) -> dict:
     """Run a scene's loading program; counts, wall time, end status, final φ and the last φ of
     every stage (``stage_phi``)."""
     from compute.errors import SimulationError
-    from compute.progress import Display
     from compute.run import Run
 
+    try:
+        from compute.progress import Display
+    except ImportError:  # checkouts before the progress display
+        Display = None
+
     t0 = time.perf_counter()
-    run = Run(scene, out, log=lambda m: None, display=Display(1, stream=io.StringIO()))
+    quiet = {"display": Display(1, stream=io.StringIO())} if "display" in inspect.signature(Run).parameters else {}
+    run = Run(scene, out, log=lambda m: None, **quiet)  # checkouts before the progress display: none
     try:
         state = run.execute()
         end = "ok"
@@ -52,7 +58,7 @@ def run_folder(scene: Path, out: Path) -> dict:
         state, end = run.state, f"failed at step {run.state.step + 1}: {str(exc)[:120]}"
     s = run.stepper.stats
     return {"steps": state.step, "newton_iterations": s["newton_iterations"], "contact_sweeps": s["nlgs_sweeps"],
-            "cuts": s["cuts"], "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6),
+            "cuts": s.get("cuts", 0), "fallbacks": s.get("fallbacks", 0), "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6),
             "end": end, "stage_phi": stage_phi(out)}
 
 

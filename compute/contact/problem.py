@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from compute.contact.compliance import Compliance, delassus_blocks
+from compute.contact.compliance import Compliance, block_delassus, delassus_blocks
 from compute.contact.rows import ContactRows, generalised_impulse
 from compute.solvers.residual import natural_map_error
 
@@ -83,8 +83,6 @@ class ContactProblem:
 
     def normal_delassus(self, rows: np.ndarray) -> np.ndarray:
         """Dense normal Delassus block (k, k) H_nᵀ M̂⁻¹ H_n of the contacts ``rows`` (k,)."""
-        from compute.solvers.block_gs import block_delassus
-
         rows = np.asarray(rows, np.int64)
         k = rows.size
         wb, _ = block_delassus(rows, np.array([0, k], np.int64), self.dof, self.hn, self.ht,

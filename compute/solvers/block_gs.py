@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from compute.contact.compliance import add_contact_impulse, entry
+from compute.contact.compliance import add_contact_impulse, block_delassus
 from compute.contact.rows import local_velocity
 from compute.solvers import SolveReport
 from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
@@ -82,51 +82,6 @@ def blocks_of(dof: np.ndarray, block: np.ndarray) -> tuple[np.ndarray, np.ndarra
     ks = key[order]
     bstart = np.concatenate([[0], np.flatnonzero(np.diff(ks)) + 1, [nc]]).astype(np.int64)
     return order, bstart
-
-
-@numba.njit(cache=True)
-def block_delassus(order, bstart, dof, hn, ht, diagonal, block, start, offset, values):
-    """Dense W_BB of every block, row-major (2k, 2k) with rows n0, t0, n1, t1, ..., concatenated:
-    (values, offsets (n_blocks + 1,))."""
-    nb = bstart.shape[0] - 1
-    woff = np.zeros(nb + 1, np.int64)
-    for B in range(nb):
-        k = bstart[B + 1] - bstart[B]
-        woff[B + 1] = woff[B] + 4 * k * k
-    wb = np.zeros(woff[nb])
-    m = dof.shape[1]
-    for B in range(nb):
-        k = bstart[B + 1] - bstart[B]
-        n2 = 2 * k
-        for i in range(k):
-            c = order[bstart[B] + i]
-            for j in range(i, k):
-                d = order[bstart[B] + j]
-                nn = nt = tn = tt = 0.0
-                for a in range(m):
-                    da = dof[c, a]
-                    if da < 0:
-                        continue
-                    for e in range(m):
-                        de = dof[d, e]
-                        if de < 0:
-                            continue
-                        w = entry(da, de, diagonal, block, start, offset, values)
-                        if w != 0.0:
-                            nn += hn[c, a] * w * hn[d, e]
-                            nt += hn[c, a] * w * ht[d, e]
-                            tn += ht[c, a] * w * hn[d, e]
-                            tt += ht[c, a] * w * ht[d, e]
-                o = woff[B]
-                wb[o + (2 * i) * n2 + 2 * j] = nn
-                wb[o + (2 * i) * n2 + 2 * j + 1] = nt
-                wb[o + (2 * i + 1) * n2 + 2 * j] = tn
-                wb[o + (2 * i + 1) * n2 + 2 * j + 1] = tt
-                wb[o + (2 * j) * n2 + 2 * i] = nn
-                wb[o + (2 * j + 1) * n2 + 2 * i] = nt
-                wb[o + (2 * j) * n2 + 2 * i + 1] = tn
-                wb[o + (2 * j + 1) * n2 + 2 * i + 1] = tt
-    return wb, woff
 
 
 @numba.njit(cache=True)
