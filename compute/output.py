@@ -20,8 +20,8 @@ FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibr
                  "xmin", "xmax", "ymin", "ymax"]
 HISTORY_COLUMNS = ["time", "step", "stage", "pressure_applied", "xmin", "xmax", "ymin", "ymax", "phi",
                    "nlgs_sweeps", "nlgs_residual", "kinetic_energy", "inertial_number", "n_contacts",
-                   "max_penetration", "newton_iterations", "cuts", "load_halvings", "sub_steps"]
-ADDED_COLUMNS = 1  # trailing columns that histories of earlier versions lack (resumed: left empty, unknown)
+                   "max_penetration", "newton_iterations", "cuts", "load_halvings", "sub_steps", "hold_torque"]
+ADDED_COLUMNS = 2  # trailing columns that histories of earlier versions lack (resumed: left empty, unknown)
 SERIES = ("bodies", "contacts", "walls")
 
 

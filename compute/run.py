@@ -213,7 +213,7 @@ class Run:
             nlgs_residual=rep.residual, kinetic_energy=self.model.kinetic_energy(st.v),
             inertial_number=self._inertial(pressure), n_contacts=rep.n_contacts,
             max_penetration=rep.max_penetration, newton_iterations=rep.newton_iterations, cuts=rep.cuts,
-            load_halvings=halvings, sub_steps=rep.sub_steps))
+            load_halvings=halvings, sub_steps=rep.sub_steps, hold_torque=rep.hold_torque))
         self.progress.step(st.stage, pressure, phi, st.step, st.stage_steps)
         out = self.scene.output
         if out.every_steps and st.step % out.every_steps == 0:

@@ -170,6 +170,22 @@ class SoftBodies:
             raise StepFailure(self._inverted(int(np.flatnonzero(~ok)[0]), x_theta, "x_theta"))
         return self.residual(vb, f)
 
+    def hold_torques(self, v: np.ndarray, hr: np.ndarray) -> np.ndarray:
+        """(B,) the torque the rotation hold applies to each body over the step, relative to the
+        moments of its contact forces about its centroid: |ρᵀ (R(v) − H r)| / Σ_a |x_a − x̄| |(H r)_a|
+        (angular impulses; ρ the rotation field about the centroid at x_n); 0 without a hold,
+        inf for a body without contact that the hold turns. v (n_dofs,) end-of-step velocities,
+        hr (n_dofs,) the contact impulses H r."""
+        if not self.hold_rotation:
+            return np.zeros(self.B)
+        arm = self._x_n - self.batch.centroids(self._x_n)[:, None, :]
+        rho = np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
+        contact = hr[self.dofs].reshape(self.B, -1)
+        held = np.abs(np.einsum("ij,ij->i", rho, self.momentum_residual(v) - contact))
+        scale = np.sum(np.linalg.norm(arm, axis=2) * np.linalg.norm(contact.reshape(self.B, -1, 2), axis=2), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(scale > 0.0, held / np.where(scale > 0.0, scale, 1.0), np.where(held > 0.0, np.inf, 0.0))
+
     def residual(self, vb: np.ndarray, f: np.ndarray) -> np.ndarray:
         """R_b(v) = M_b (v - v⁻) + h f_int - h M_b g (B, 2n) of every body, for its velocities
         vb (B, 2n) and internal forces f (B, 2n) at x_θ (module docstring)."""

@@ -96,7 +96,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     restored) when an attempt fails at depth ``max_cuts``. The report is the last sub-step's, with
     the Newton iterations and sweeps of all the step's attempts (counted by them in ``stats``), its
     ``cuts`` (failed attempts), ``sub_steps`` (accepted ones), and the largest contact
-    ``residual`` and ``max_penetration`` of the accepted sub-steps (a penetration left at the
+    ``residual``, ``max_penetration`` and ``hold_torque`` of the accepted sub-steps (a penetration left at the
     start of an early sub-step is not hidden by a later one's)."""
     t0, s0 = state.time, state.step
     since = counts(stats)
@@ -104,7 +104,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts, sub_steps = 2**max_cuts, 0, None, 0, 0  # progress in units of h / 2**max_cuts
     iterations = sweeps = 0  # of the accepted sub-steps
-    residual = penetration = 0.0
+    residual = penetration = torque = 0.0
     over = h  # the step length the impulses in state.impulses are over
     while done < units:
         over = _rescale_impulses(state, over, h / 2**depth)
@@ -114,6 +114,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             rep = attempt(state, h / 2**depth, depth >= max_cuts)
             residual = float(np.maximum(residual, rep.residual))  # NaN stays
             penetration = max(penetration, rep.max_penetration)
+            torque = max(torque, rep.hold_torque)
             done += units >> depth
             sub_steps += 1
             its1, sweeps1 = counts(stats)
@@ -128,6 +129,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
             cuts += 1
             depth += 1
     rep.cuts, rep.sub_steps, rep.residual, rep.max_penetration = cuts, sub_steps, residual, penetration
+    rep.hold_torque = torque
     charge(rep, stats, since)
     if slow(iterations, sweeps, sub_steps) and depth < max_cuts - 1:
         depth += 1

@@ -24,7 +24,7 @@ import numpy as np
 
 from compute.bodies import Load
 from compute.contact import detection
-from compute.contact.rows import ContactRows
+from compute.contact.rows import ContactRows, generalised_impulse
 from compute.errors import SimulationError, StepFailure
 from compute import solvers
 from compute.stepping import active_set, control
@@ -43,6 +43,7 @@ class StepReport:
     cuts: int = 0
     h: float = 0.0
     sub_steps: int = 1  # accepted sub-steps the step was taken in (compute.stepping.control)
+    hold_torque: float = 0.0  # largest SoftBodies.hold_torques of the step (of a cut step: of its sub-steps)
 
 
 class Stepper:
@@ -108,6 +109,9 @@ class Stepper:
         if not np.all(np.isfinite(v)):
             raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")
+        torque = max((float(g.hold_torques(v, generalised_impulse(contacts.dof, contacts.hn, contacts.ht,
+                                                                 contacts.impulse, m.n_dofs)).max(initial=0.0))
+                      for g in m.soft if g.hold_rotation), default=0.0)
         state.q += h * ((1.0 - th) * state.v + th * v)
         state.v = v
         state.time += h
@@ -115,4 +119,4 @@ class Stepper:
         detection.store_impulses(m, state, contacts.impulse)
         return StepReport(report.iterations, report.residual, int(np.count_nonzero(contacts.impulse[:, 0] > 0.0)),
                           float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0, contacts,
-                          newton_iterations=iterations, h=h)
+                          newton_iterations=iterations, h=h, hold_torque=torque)

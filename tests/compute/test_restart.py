@@ -95,11 +95,12 @@ def test_resume_refuses_a_history_of_other_columns(tmp_path):
         History(path, resume_step=1)
 
 
-def test_resume_keeps_a_history_of_the_previous_version(tmp_path):
-    """A history written before the last column (sub_steps) existed is resumed: its rows are kept,
-    their missing field left empty (unknown), and new rows have it."""
+@pytest.mark.parametrize("missing", [1, 2])
+def test_resume_keeps_a_history_of_a_previous_version(tmp_path, missing):
+    """A history written before its last columns existed (hold_torque; sub_steps and hold_torque)
+    is resumed: its rows are kept, their missing fields left empty (unknown), and new rows have them."""
     path = tmp_path / "history.csv"
-    old = HISTORY_COLUMNS[:-1]
+    old = HISTORY_COLUMNS[:-missing]
     path.write_text(",".join(old) + "\n" + "".join(",".join(str(s) for _ in old) + "\n" for s in range(1, 6)))
     h = History(path, resume_step=3)
     h.append({k: 4 for k in HISTORY_COLUMNS})
@@ -107,7 +108,10 @@ def test_resume_keeps_a_history_of_the_previous_version(tmp_path):
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert [r["step"] for r in rows] == ["1", "2", "3", "4"]
-    assert [r["sub_steps"] for r in rows] == ["", "", "", "4"]
+    for column in HISTORY_COLUMNS[-missing:]:
+        assert [r[column] for r in rows] == ["", "", "", "4"]
+    if missing == 1:
+        assert [r["sub_steps"] for r in rows] == ["1", "2", "3", "4"]
 
 
 def _holder(out: Path) -> subprocess.Popen:

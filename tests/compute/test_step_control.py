@@ -30,7 +30,8 @@ class ScriptedAttempt:
         impulse = np.full((1, 2), h)  # an impulse proportional to its sub-step
         sub_step = self.asked[::-1].index("|")  # attempts 1, 2, ... within the step
         return SimpleNamespace(h=h, sweeps=9, residual=1e-9 * sub_step, newton_iterations=2, cuts=0,
-                               max_penetration=self.penetration(sub_step), contacts=SimpleNamespace(impulse=impulse))
+                               max_penetration=self.penetration(sub_step), hold_torque=1e-4 * (sub_step == 4),
+                               contacts=SimpleNamespace(impulse=impulse))
 
 
 def take(attempt, state, steps, h=1.0, max_cuts=4):
@@ -75,7 +76,8 @@ def test_failure_at_the_kept_depth_cuts_further():
 
 def test_a_cut_step_reports_the_deepest_penetration_and_largest_residual_of_its_sub_steps():
     """Taken in four quarters, a step whose first quarter starts 2e-3 inside and whose last starts
-    1e-6 inside reports 2e-3 (the last sub-step alone would hide it), and the largest residual."""
+    1e-6 inside reports 2e-3 (the last sub-step alone would hide it), the largest residual, and
+    the largest hold torque (that of its second quarter)."""
     attempt = ScriptedAttempt(lambda step: 0.25, penetration=lambda sub_step: {3: 2e-3}.get(sub_step, 1e-6))
     state = State(np.zeros(1), np.zeros(1))
     rep, = take(attempt, state, 1)
@@ -83,6 +85,7 @@ def test_a_cut_step_reports_the_deepest_penetration_and_largest_residual_of_its_
     assert asked == [1.0, 0.5, 0.25, 0.25, 0.25, 0.25]  # attempts 3..6 are the accepted quarters
     assert rep.sub_steps == 4 and rep.max_penetration == 2e-3
     assert rep.residual == pytest.approx(6e-9)
+    assert rep.hold_torque == 1e-4
 
 
 def test_impulses_are_rescaled_to_the_whole_step():
@@ -163,6 +166,7 @@ class CostlyAttempt:
         state.time += h
         state.step += 1
         return SimpleNamespace(h=h, sweeps=sweeps, residual=1e-9, newton_iterations=its, cuts=0, max_penetration=0.0,
+                               hold_torque=0.0,
                                contacts=SimpleNamespace(impulse=np.zeros((1, 2))))
 
 
