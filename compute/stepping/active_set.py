@@ -33,14 +33,17 @@ The exact M̂ is kept where it is indefinite (NewtonMatrices.set_indefinite): a 
 boundary nodes wrinkle in modes its active contacts hold. The step is accepted only if M̂ is
 positive definite on the velocities the active contacts and the hold leave free: the active
 block W_AA then has exactly ``expected_negative`` negative eigenvalues (Haynsworth's inertia
-theorem on the KKT matrix). A step that fails that check, or does not converge in
-``ITERATIONS``, is taken again by the fixed-point loop of :mod:`compute.stepping.newton` with
-positive definite matrices (counted as ``fallbacks``).
+theorem on the KKT matrix). A step that fails that check, stalls (``SHORT_STEPS`` steps in a
+row shorter than ``SHORT_STEP``) or does not converge in ``ITERATIONS`` is taken again by the
+fixed-point loop of :mod:`compute.stepping.newton` with positive definite matrices (counted as
+``fallbacks``).
 
 Why: the fixed-point loop needs a positive definite M̂ for its contact solver, so a pressed
 body iterates with a stabilised matrix, a modified Newton that converges linearly; here the
 iteration is Newton's, 2–3 iterations per step once a stage has started (single particle,
-benchmarks/results/active_set_single_particle.md).
+benchmarks/results/active_set_single_particle.md). Where it stalls: a mean-dilatation T6 disk
+that fills its box at P/E = 1, its exact M̂ with 20–28 negative pivots, whose steps the line
+search cuts to 1/8 there.
 """
 
 from __future__ import annotations
