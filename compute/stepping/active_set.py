@@ -15,7 +15,8 @@ impulses r⁰:
     (v^{k+1}, r^{k+1}) = (v^k, r^k) + a (v̂ − v^k, r̂ − r^k)
 
 The third line is the KKT system [M̂ −c −H_A; cᵀ 0 0; H_Aᵀ 0 0] by its Schur complement on
-the contact rows; the tangent is assembled and factorised at every iteration (SoftBodies.refresh).
+the contact rows; the tangent is assembled at every iteration and refactorised where it changed
+by more than 1e-3 (SoftBodies.refresh).
 a = 1, 1/2, ... the first step that keeps every element's area change within the safeguard of
 compute.stepping.newton and decreases the merit (Armijo)
 
