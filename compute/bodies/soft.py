@@ -24,11 +24,13 @@ body, which its compressive loads make unstable: without it the iteration needs 
 matrix and converges linearly; with it the exact M̂ is definite on what is left.
 
 A step solved by compute.stepping.active_set (``use_indefinite``) takes the exact M̂ even
-where the boundary's wrinkling modes make it indefinite: the active contacts hold them. The factorised
-matrices live in :class:`~compute.bodies.soft_matrix.NewtonMatrices`. Bodies whose own correction
-fell below the Newton tolerance are *settled*: their residual, tangent and factorisation are
-not recomputed in the following iterations of the step (a chord step for them; the free velocity
-of the last evaluation stays valid to first order in their remaining correction).
+where the boundary's wrinkling modes make it indefinite: the active contacts hold them.
+
+The factorised matrices live in :class:`~compute.bodies.soft_matrix.NewtonMatrices`. Bodies
+whose own correction fell below the Newton tolerance are *settled*: their residual, tangent and
+factorisation are not recomputed in the following iterations of the step (a chord step for
+them; the free velocity of the last evaluation stays valid to first order in their remaining
+correction).
 
 The centre of a body (branch vectors, frames) is its current centroid; its area the exact
 current area of its elements.
@@ -182,8 +184,7 @@ class SoftBodies:
         hr (n_dofs,) the contact impulses H r."""
         if not self.hold_rotation:
             return np.zeros(self.B)
-        arm = self._x_n - self.batch.centroids(self._x_n)[:, None, :]
-        rho = np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
+        arm, rho = self._rotation_field(self._x_n)
         contact = hr[self.dofs].reshape(self.B, -1)
         held = np.abs(np.einsum("ij,ij->i", rho, self.momentum_residual(v) - contact))
         scale = np.sum(np.linalg.norm(arm, axis=2) * np.linalg.norm(contact.reshape(self.B, -1, 2), axis=2), axis=1)
@@ -198,9 +199,13 @@ class SoftBodies:
     def rotation_momenta(self, x: np.ndarray) -> np.ndarray:
         """c_b = M_b ρ_b (B, 2n): ρ_b the rigid rotation field of body b about its centroid in
         positions x (B, n, 2), so that c_bᵀ v_b is its angular momentum about that centroid."""
+        return self.batch.mass_times(self._rotation_field(x)[1])
+
+    def _rotation_field(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Arms x − x̄ (B, n, 2) from each body's centroid in positions x (B, n, 2), and the rigid
+        rotation field ρ = e_z × (x − x̄) (B, 2n) about it."""
         arm = x - self.batch.centroids(x)[:, None, :]
-        rho = np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
-        return self.batch.mass_times(rho)
+        return arm, np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
 
     def use_indefinite(self, on: bool) -> None:
         """Whether the next factorisations may be indefinite (NewtonMatrices.set_indefinite)."""
