@@ -23,7 +23,8 @@ class Model:
 
     ``rigid`` (RigidDisks, possibly empty), ``walls`` (Walls), ``soft`` (list of SoftBodies, one
     per reference mesh and material); ``groups`` all of them in dof order; ``families`` the
-    contact families present; ``friction`` (n_mat, n_mat). Soft-node arrays for the contact
+    contact families present; ``friction`` (n_mat, n_mat); ``active_set_newton`` whether steps go
+    through compute.stepping.active_set (the comment where it is set says when). Soft-node arrays for the contact
     kernels: ``loop_nodes`` (n_b,) boundary loops (global node ids, CCW, body after body) with
     offsets ``loop_start`` (nd + 1,), ``loop_neighbours`` (N, 2) the previous and next node of
     each node in its loop (-1 for interior nodes), ``node_body`` (N,) soft index of each node, ``soft_ids``
