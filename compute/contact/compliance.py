@@ -120,24 +120,33 @@ def entry(dk, dl, diagonal, block, start, offset, values):
     return values[offset[bk] + (dk - s0) * (start[bk + 1] - s0) + dl - s0]
 
 
+@numba.njit(cache=True, inline="always")
+def contact_coupling(c, d, dof, hn, ht, diagonal, block, start, offset, values):
+    """(nn, nt, tn, tt): the (2, 2) block H_cᵀ M̂⁻¹ H_d between contacts c and d (packed rows)."""
+    nn = nt = tn = tt = 0.0
+    m = dof.shape[1]
+    for a in range(m):
+        da = dof[c, a]
+        if da < 0:
+            continue
+        for e in range(m):
+            de = dof[d, e]
+            if de < 0:
+                continue
+            w = entry(da, de, diagonal, block, start, offset, values)
+            if w != 0.0:
+                nn += hn[c, a] * w * hn[d, e]
+                nt += hn[c, a] * w * ht[d, e]
+                tn += ht[c, a] * w * hn[d, e]
+                tt += ht[c, a] * w * ht[d, e]
+    return nn, nt, tn, tt
+
+
 @numba.njit(cache=True)
 def delassus_blocks(dof, hn, ht, diagonal, block, start, offset, values, W):
     """W[c] = H_c^T M̂⁻¹ H_c, the (2, 2) local Delassus block of every contact c (packed rows)."""
-    nc, m = dof.shape
-    for c in range(nc):
-        wnn = wnt = wtt = 0.0
-        for k in range(m):
-            dk = dof[c, k]
-            if dk < 0:
-                continue
-            for l in range(m):
-                dl = dof[c, l]
-                if dl < 0:
-                    continue
-                cij = entry(dk, dl, diagonal, block, start, offset, values)
-                wnn += hn[c, k] * cij * hn[c, l]
-                wnt += hn[c, k] * cij * ht[c, l]
-                wtt += ht[c, k] * cij * ht[c, l]
+    for c in range(dof.shape[0]):
+        wnn, wnt, _, wtt = contact_coupling(c, c, dof, hn, ht, diagonal, block, start, offset, values)
         W[c, 0, 0] = wnn
         W[c, 0, 1] = wnt
         W[c, 1, 0] = wnt
@@ -154,7 +163,6 @@ def block_delassus(order, bstart, dof, hn, ht, diagonal, block, start, offset, v
         k = bstart[B + 1] - bstart[B]
         woff[B + 1] = woff[B] + 4 * k * k
     wb = np.zeros(woff[nb])
-    m = dof.shape[1]
     for B in range(nb):
         k = bstart[B + 1] - bstart[B]
         n2 = 2 * k
@@ -162,21 +170,7 @@ def block_delassus(order, bstart, dof, hn, ht, diagonal, block, start, offset, v
             c = order[bstart[B] + i]
             for j in range(i, k):
                 d = order[bstart[B] + j]
-                nn = nt = tn = tt = 0.0
-                for a in range(m):
-                    da = dof[c, a]
-                    if da < 0:
-                        continue
-                    for e in range(m):
-                        de = dof[d, e]
-                        if de < 0:
-                            continue
-                        w = entry(da, de, diagonal, block, start, offset, values)
-                        if w != 0.0:
-                            nn += hn[c, a] * w * hn[d, e]
-                            nt += hn[c, a] * w * ht[d, e]
-                            tn += ht[c, a] * w * hn[d, e]
-                            tt += ht[c, a] * w * ht[d, e]
+                nn, nt, tn, tt = contact_coupling(c, d, dof, hn, ht, diagonal, block, start, offset, values)
                 o = woff[B]
                 wb[o + (2 * i) * n2 + 2 * j] = nn
                 wb[o + (2 * i) * n2 + 2 * j + 1] = nt

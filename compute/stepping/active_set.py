@@ -83,7 +83,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
 def _active_set_newton(model, contacts, v_minus, h, theta, contact_tol, tol, max_iterations, stats):
     n = model.n_dofs
     diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
-    soft_dofs = newton._contact_dofs(model, contacts)
+    soft_dofs = newton.contact_dofs(model, contacts)
     v, v_free = np.zeros(n), np.zeros(n)
     for g in model.groups:
         if g.nonlinear:
@@ -121,7 +121,7 @@ def _active_set_newton(model, contacts, v_minus, h, theta, contact_tol, tol, max
                 except np.linalg.LinAlgError:
                     raise StepFailure(f"singular active Delassus block ({active.size} contacts, iteration {it})") from None
             r[:] = r_hat
-            v_hat = v_free + newton._compliance_times(model, diagonals, problem.generalised_impulse(n))
+            v_hat = v_free + newton.compliance_times(model, diagonals, problem.generalised_impulse(n))
         if not np.all(np.isfinite(v_hat)):
             raise StepFailure(f"non-finite velocities at active-set iteration {it}")
         with TIMES("line search"):

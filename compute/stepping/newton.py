@@ -71,7 +71,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
     the step (module docstring)."""
     n = model.n_dofs
     diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
-    soft_dofs = _contact_dofs(model, contacts)
+    soft_dofs = contact_dofs(model, contacts)
     v = np.zeros(n)
     v_free = np.zeros(n)
     for g in model.groups:
@@ -98,7 +98,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
         if it > 1:
             with TIMES("residuals"):
                 if y_stamp != stamp:  # some body refactorised since y = M̂⁻¹ H r was computed
-                    y, y_stamp = _compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
+                    y, y_stamp = compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
                 balance = h * theta * float(np.max(np.abs(v - v_free - y)))
                 if balance <= tol:
                     contact = problem.error(v)
@@ -116,7 +116,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
                                   f"Newton iteration {it})")
         v_new = report.v
         with TIMES("recovery"):  # soft bodies: v_b = v_free,b + M̂_b⁻¹ (H r)_b on all their dofs
-            y, y_stamp = _compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
+            y, y_stamp = compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
             for g in model.soft:
                 v_new[g.dofs] = v_free[g.dofs] + y[g.dofs]
         if not np.all(np.isfinite(v_new)):
@@ -158,13 +158,13 @@ def _slowest(model, v, v_new, tol: float, shown: int = 5) -> str:
     return "; above it in " + ", ".join(f"body {ids[i]} ({c[i]:.2g})" for i in top) + more
 
 
-def _contact_dofs(model, contacts) -> list:
+def contact_dofs(model, contacts) -> list:
     """[(soft group, sorted unique global dofs (m,) of the group that contact rows touch)]."""
     d = np.unique(contacts.dof[contacts.dof >= model.node_dof0])
     return [(g, d[(d >= g.dofs.start) & (d < g.dofs.stop)]) for g in model.soft]
 
 
-def _compliance_times(model, diagonals: list, hr: np.ndarray) -> np.ndarray:
+def compliance_times(model, diagonals: list, hr: np.ndarray) -> np.ndarray:
     """M̂⁻¹ hr (n_dofs,) for a generalised impulse hr (n_dofs,): the 1x1 blocks ``diagonals`` of
     the linear groups, batched solves of the soft ones."""
     y = np.zeros_like(hr)
