@@ -13,6 +13,10 @@ this same script), one thread, one JSON line per case (--json appends them to a 
 - ``program``: a prepared scene folder (--program, e.g. the 144-disk mixture), its whole loading
   program, the run ending where it ends (a failure is part of the result).
 
+Runs of scene folders also record the Newton iterations and seconds of each stage
+(``stage_iterations``, ``stage_seconds``; the first stage's seconds include loading numba's
+cache).
+
     python benchmarks/newton_iterations.py --json after.jsonl [--program W/runs/k0.5_mu0.2_s1/scene]
     (cd WORKTREE && python /path/to/benchmarks/newton_iterations.py --json before.jsonl ...)
 """
@@ -51,6 +55,7 @@ def run_folder(scene: Path, out: Path) -> dict:
     t0 = time.perf_counter()
     quiet = {"display": Display(1, stream=io.StringIO())} if "display" in inspect.signature(Run).parameters else {}
     run = Run(scene, out, log=lambda m: None, **quiet)  # checkouts before the progress display: none
+    per_stage = count_per_stage(run)
     try:
         state = run.execute()
         end = "ok"
@@ -59,7 +64,30 @@ def run_folder(scene: Path, out: Path) -> dict:
     s = run.stepper.stats
     return {"steps": state.step, "newton_iterations": s["newton_iterations"], "contact_sweeps": s["nlgs_sweeps"],
             "cuts": s.get("cuts", 0), "fallbacks": s.get("fallbacks", 0), "seconds": round(time.perf_counter() - t0, 2), "phi": round(run.model.phi(state.q), 6),
-            "end": end, "stage_phi": stage_phi(out)}
+            "end": end, "stage_phi": stage_phi(out), **per_stage}
+
+
+def count_per_stage(run) -> dict:
+    """Wrap ``run.stepper.step`` so that the Newton iterations and the seconds of every step
+    (failed attempts included) add up per stage, in the returned dict's lists
+    ``stage_iterations`` and ``stage_seconds`` (filled as the run goes; works on checkouts
+    whose history has no iteration column)."""
+    stepper, counts = run.stepper, {"stage_iterations": [], "stage_seconds": []}
+    step = stepper.step
+
+    def counted(state, *args, **kwargs):
+        its, t = stepper.stats["newton_iterations"], time.perf_counter()
+        try:
+            return step(state, *args, **kwargs)
+        finally:
+            for key in counts:
+                counts[key].extend([0] * (state.stage + 1 - len(counts[key])))
+            counts["stage_iterations"][state.stage] += stepper.stats["newton_iterations"] - its
+            counts["stage_seconds"][state.stage] = round(counts["stage_seconds"][state.stage]
+                                                         + time.perf_counter() - t, 4)
+
+    stepper.step = counted
+    return counts
 
 
 def stage_phi(out: Path) -> list[float]:
