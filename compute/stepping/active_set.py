@@ -43,8 +43,9 @@ Why: the fixed-point loop needs a positive definite M̂ for its contact solver, 
 body iterates with a stabilised matrix, a modified Newton that converges linearly; here the
 iteration is Newton's, 2–3 iterations per step once a stage has started (single particle,
 benchmarks/results/active_set_single_particle.md). Where it stalls: a mean-dilatation T6 disk
-that fills its box at P/E = 1, its exact M̂ with 20–28 negative pivots, whose steps the line
-search cuts to 1/8 there.
+that fills its box at P/E = 1, whose M̂ has 27 negative eigenvalues down to −107 there (the
+standard T6 disk on the same mesh: 12, down to −10), mostly on the nodes against the walls;
+the line search cuts its steps to 1/8 (benchmarks/results/single_particle_stages.md).
 """
 
 from __future__ import annotations

@@ -109,9 +109,9 @@ class Stepper:
         if not np.all(np.isfinite(v)):
             raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
                               f"after {report.iterations} sweeps)")
-        torque = max((float(g.hold_torques(v, generalised_impulse(contacts.dof, contacts.hn, contacts.ht,
-                                                                 contacts.impulse, m.n_dofs)).max(initial=0.0))
-                      for g in m.soft if g.hold_rotation), default=0.0)
+        held = [g for g in m.soft if g.hold_rotation]
+        hr = generalised_impulse(contacts.dof, contacts.hn, contacts.ht, contacts.impulse, m.n_dofs) if held else None
+        torque = max((float(g.hold_torques(v, hr).max(initial=0.0)) for g in held), default=0.0)
         state.q += h * ((1.0 - th) * state.v + th * v)
         state.v = v
         state.time += h
