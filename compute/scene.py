@@ -76,7 +76,7 @@ class Solver:
     skin: float
     newton_tolerance: float
     newton_max_iterations: int
-    contact: str  # contact solver: "auto", "nlgs", "block" or "nlgs_block" (compute.solvers.for_scene)
+    contact: str  # contact solver: "auto", "nlgs", "block", "nlgs_block", "interior_point" (compute.solvers.for_scene)
     rigid_soft_rows: str  # "nodes" or "nodes_and_segments" (compute.contact.soft_rows, segment-disk)
     hold_rotation: bool  # soft bodies' angular momentum about their centroid held at zero (compute.bodies.soft)
 

@@ -144,7 +144,8 @@ SOLVER = (
     _tolerance("newton_tolerance", "Newton loop: position correction, in mean diameters", low=1e-15, default=1e-8),
     Key("newton_max_iterations", "int", "Newton iterations per step attempt", low=1, high=1000, default=20),
     Key("contact", "str", "contact solver (auto: nlgs without soft bodies, block for one soft body alone, "
-        "else nlgs_block)", options=("auto", "nlgs", "block", "nlgs_block"), default="auto"),
+        "else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py)",
+        options=("auto", "nlgs", "block", "nlgs_block", "interior_point"), default="auto"),
     Key("rigid_soft_rows", "str", "rigid disks against soft boundaries: kept off the soft nodes, or off the nodes "
         "and the boundary segments between them (measured with T3; with T6 the half-edges under pressed disks "
         "oscillate and stages may not end: benchmarks/experiments/README.md)", options=("nodes", "nodes_and_segments"),

@@ -86,3 +86,40 @@ def natural_map_error(dof, hn, ht, W, gap_term, mu, r, v):
         num += squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size)
         den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
     return relative(num, den)
+
+
+@numba.njit(cache=True)
+def velocity_error(dof, hn, ht, W, gap_term, mu, r, v, v_free):
+    r"""The natural-map error in velocity units: per contact e_c = W_nn,c f_c (f_c with
+    ρ_c = 1 / W_nn,c, so that e_c is the velocity error of contact c whatever its compliance),
+    relative to the velocities the impulses make, w_c = H_cᵀ (v - v_free) (= (W r)_c).
+    Returns (‖e‖ / ‖w‖ over all contacts (2-norms), max_c |e_c| / max_c |w_c|): the first
+    bounds the packing's error, the second every contact's. Arrays as in
+    ``natural_map_error``, ``v_free`` (n_dofs,) packed like v."""
+    nc, m = dof.shape
+    num = 0.0
+    den = 0.0
+    top = 0.0
+    scale = 0.0
+    for c in range(nc):
+        un = gap_term[c]
+        ut = 0.0
+        wn = 0.0
+        wt = 0.0
+        size = abs(gap_term[c])
+        for k in range(m):
+            d = dof[c, k]
+            if d >= 0:
+                un += hn[c, k] * v[d]
+                ut += ht[c, k] * v[d]
+                wn += hn[c, k] * (v[d] - v_free[d])
+                wt += ht[c, k] * (v[d] - v_free[d])
+                size += abs(hn[c, k] * v[d]) + abs(ht[c, k] * v[d])
+        wnn = W[c, 0, 0] if W[c, 0, 0] > 0.0 else 1.0
+        e2 = squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size) * wnn * wnn
+        w2 = wn * wn + wt * wt
+        num += e2
+        den += w2
+        top = max(top, e2)
+        scale = max(scale, w2)
+    return relative(num, den), relative(top, scale)

@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 from compute.solvers.block_gs import BlockGS
+from compute.solvers.interior_point import InteriorPoint
 from compute.solvers.nlgs import NLGS
 from compute.solvers.nlgs_block import NLGSThenBlock
 from compute.solvers.residual import natural_map_error
 from tests.solvers.lemke import frictional_lcp, lemke, solve_contact
 from tests.solvers.problems import dense_form, random_problem
 
-SOLVERS = {"nlgs": NLGS(1e-13, 200_000), "block": BlockGS(1e-13, 20_000), "nlgs_block": NLGSThenBlock(1e-13, 200_000)}
+SOLVERS = {"nlgs": NLGS(1e-13, 200_000), "block": BlockGS(1e-13, 20_000), "nlgs_block": NLGSThenBlock(1e-13, 200_000),
+           "interior_point": InteriorPoint(1e-13, 200)}
 KINDS = ("rigid", "soft", "mixed")
 
 
@@ -162,3 +164,37 @@ def test_block_solver_with_redundant_contacts():
     report = BlockGS(1e-10, 1000).solve(p)
     assert report.residual <= 1e-10 and error_of(p, p.impulse) <= 1e-9
     assert p.impulse[0, 0] + p.impulse[1, 0] > 0
+
+
+@pytest.mark.parametrize("kind", KINDS + ("rank_deficient",))
+def test_whole_packing_delassus_is_the_dense_product(kind):
+    """compute.contact.delassus assembles W = Hᵀ C H group by group; the dense product of the
+    test's own H and C is the independent answer."""
+    from compute.contact.delassus import Delassus
+
+    for seed in range(5):
+        p = random_problem(np.random.default_rng(300 + seed), kind, 10)
+        _, _, W, _ = dense_form(p)
+        D = Delassus.of_problem(p)
+        np.testing.assert_allclose(D.dense(), W, rtol=0, atol=1e-13 * np.abs(W).max())
+        r = np.random.default_rng(seed).normal(size=(10, 2))
+        np.testing.assert_allclose(D.times(r).ravel(), W @ r.ravel(), rtol=0, atol=1e-12 * np.abs(W).max())
+
+
+def test_velocity_error_is_the_velocity_of_the_wrong_impulse():
+    """One frictionless rigid contact (W_nn = 2) closing at ũ_n = -1 without impulse: with the
+    exact r = 1/2 the error is 0; with r = 1/4 (half of it) the contact still closes at -1/2, a
+    velocity error of 1/2 against the velocity 1/2 that r = 1/4 makes: 1."""
+    from compute.contact.compliance import Compliance
+    from compute.contact.problem import ContactProblem
+
+    comp = Compliance.build(2, [(np.arange(2), np.array([1.0, 1.0]))])
+    dof = np.array([[0, 1, -1, -1, -1, -1, -1, -1]])
+    hn = np.array([[-1.0, 1.0, 0, 0, 0, 0, 0, 0]])
+    p = ContactProblem.of_rows(dof, hn, np.zeros_like(hn), comp, np.array([0.5, -0.5]), np.zeros(1), np.zeros(1),
+                               np.zeros((1, 2)))
+    assert p.W[0, 0, 0] == pytest.approx(2.0)
+    for rn, expected in ((0.5, 0.0), (0.25, 1.0)):
+        p.impulse[0, 0] = rn
+        v = p.v_free + comp.diagonal * (hn[0, :2] * rn)
+        assert p.velocity_error(v) == pytest.approx((expected, expected))

@@ -1,0 +1,140 @@
+"""Contact problems of real runs, saved to files and solved by every contact solver side by side.
+
+``export``: runs a scene (compute's Run, one thread) and saves the contact problem of the first
+contact solve of the first step of stage ``--stage`` (or of step ``--step``) as a .npz file,
+cold (impulses zero), then stops the run. ``compare``: solves saved problems from zero impulses
+with each solver to each tolerance and prints one JSON line per solve: iterations, seconds,
+the natural-map error (compute.solvers.residual, the stopping test) and the velocity error
+(natural-map error in velocity units relative to the free velocity's scale), both
+recomputed from the returned impulses.
+
+    python -m studies.mixture_compaction.pre --workdir W3 --n 144 --kappa 0.5 --mu 0.2 --element T3 --pressures 0.01 0.03 0.1 0.3 1
+    python benchmarks/contact_problems.py export --scene W3/runs/k0.5_mu0.2_s1/scene --stage 4 --file P/mix144_pe1.npz
+    python benchmarks/contact_problems.py export --scene studies/mixture_compaction/results/n1500_t3/rigid/mu0.2_s1/scene --step 1 --file P/rigid1500.npz
+    python benchmarks/contact_problems.py compare P/*.npz --solvers nlgs block interior_point --tolerances 1e-6 1e-8
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import copy  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+FIELDS = ("dof", "hn", "ht", "v_free", "gap_term", "mu")
+COMPLIANCE = ("order", "index", "diagonal", "block", "start", "offset", "values")
+
+
+class _Saved(BaseException):
+    """Ends the exporting run once the problem is written."""
+
+
+def save(problem, path: Path, **meta) -> None:
+    """The problem's rows, compliance and free velocity (not W: recomputed on load) to ``path``."""
+    arrays = {k: getattr(problem, k) for k in FIELDS}
+    arrays.update({"c_" + k: getattr(problem.compliance, k) for k in COMPLIANCE})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, meta=json.dumps(meta), **arrays)
+
+
+def load(path: Path):
+    """The ContactProblem saved in ``path``, with zero impulses; and its metadata."""
+    from compute.contact.compliance import Compliance
+    from compute.contact.problem import ContactProblem
+
+    z = np.load(path)
+    comp = Compliance(*(z["c_" + k] for k in COMPLIANCE))
+    W = np.empty((len(z["gap_term"]), 2, 2))
+    from compute.contact.compliance import delassus_blocks
+
+    delassus_blocks(z["dof"], z["hn"], z["ht"], *comp.arrays(), W)
+    p = ContactProblem(z["dof"], z["hn"], z["ht"], W, comp, z["v_free"].copy(), z["gap_term"], z["mu"],
+                       np.zeros((len(z["gap_term"]), 2)))
+    return p, json.loads(str(z["meta"]))
+
+
+def export(a) -> None:
+    from compute.run import Run
+
+    with tempfile.TemporaryDirectory() as tmp:
+        run = Run(a.scene, Path(tmp) / "out", display=None, log=lambda msg: None)
+        inner = run.stepper.solver
+
+        class Recorder:
+            tolerance = inner.tolerance
+
+            def solve(self, problem):
+                st = run.state
+                if (a.step is not None and st.step + 1 >= a.step) or (a.stage is not None and st.stage >= a.stage):
+                    problem.impulse[:] = 0.0
+                    save(problem, a.file, scene=str(a.scene), step=st.step + 1, stage=st.stage,
+                         contacts=len(problem), dofs=len(problem.compliance))
+                    raise _Saved
+                return inner.solve(problem)
+
+        run.stepper.solver = Recorder()
+        try:
+            run.execute()
+        except _Saved:
+            print(f"saved {a.file}", file=sys.stderr)
+            return
+        raise SystemExit("the run ended before the requested step or stage")
+
+
+def solver_of(name: str, tol: float):
+    from compute.solvers.block_gs import BlockGS
+    from compute.solvers.interior_point import InteriorPoint
+    from compute.solvers.nlgs import NLGS
+    from compute.solvers.nlgs_block import NLGSThenBlock
+
+    return {"nlgs": lambda: NLGS(tol, 200_000), "block": lambda: BlockGS(tol, 50_000),
+            "nlgs_block": lambda: NLGSThenBlock(tol, 200_000), "interior_point": lambda: InteriorPoint(tol)}[name]()
+
+
+def compare(a) -> None:
+    for path in a.problems:
+        base, meta = load(path)
+        for name in a.solvers:
+            for tol in a.tolerances:
+                p = copy.deepcopy(base)
+                solver = solver_of(name, tol)
+                solver.solve(copy.deepcopy(base))  # compile, warm caches
+                t = time.perf_counter()
+                rep = solver.solve(p)
+                seconds = time.perf_counter() - t
+                print(json.dumps({"problem": Path(path).stem, "contacts": meta["contacts"], "solver": name,
+                                  "tolerance": tol, "iterations": rep.iterations, "seconds": round(seconds, 3),
+                                  "error": float(f"{p.error(rep.v):.3g}"),
+                                  "velocity_error": [float(f"{e:.3g}") for e in p.velocity_error(rep.v)]}), flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    e = sub.add_parser("export")
+    e.add_argument("--scene", type=Path, required=True)
+    e.add_argument("--file", type=Path, required=True)
+    g = e.add_mutually_exclusive_group(required=True)
+    g.add_argument("--stage", type=int)
+    g.add_argument("--step", type=int)
+    c = sub.add_parser("compare")
+    c.add_argument("problems", nargs="+", type=Path)
+    c.add_argument("--solvers", nargs="+", default=["nlgs", "block", "interior_point"])
+    c.add_argument("--tolerances", nargs="+", type=float, default=[1e-6, 1e-8])
+    a = ap.parse_args()
+    sys.path.insert(0, os.getcwd())  # the checkout being measured
+    export(a) if a.command == "export" else compare(a)
+
+
+if __name__ == "__main__":
+    main()

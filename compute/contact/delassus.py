@@ -1,0 +1,179 @@
+r"""The Delassus operator of the whole packing, W = Hᵀ M̂⁻¹ H, as a sparse matrix of 2x2 blocks.
+
+Block (c, d) is H_cᵀ M̂⁻¹ H_d (rows n, t of contact c against columns n, t of contact d): it is
+non-zero only when contacts c and d touch one compliance block of
+:class:`compute.contact.compliance.Compliance` (a rigid dof, or one soft body's dense block).
+So W is assembled group by group: for a group G of the compliance with the k contacts that touch
+it, the dense product W_G = H_Gᵀ C_G H_G ((2k, 2k), H_G the rows of those contacts restricted to
+G's dofs) is added to the k² blocks of its contacts. A soft body touched by k contacts costs one
+(s, s) by (s, 2k) product and (2k)² entries, never a pass over pairs of its dofs.
+
+Stored as block-CSR over contacts: ``indptr`` (nc + 1,), ``indices`` (nnzb,) sorted within a
+row, ``data`` (nnzb, 2, 2); every diagonal block (c, c) is present (zero for a contact between
+two immovable bodies). The pattern is symmetric and W[d, c] = W[c, d]ᵀ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Delassus:
+    """W in block-CSR (module docstring): ``indptr`` (nc + 1,), ``indices`` (nnzb,), ``data`` (nnzb, 2, 2)."""
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    data: np.ndarray
+
+    @classmethod
+    def of_problem(cls, problem) -> "Delassus":
+        """W of a :class:`compute.contact.problem.ContactProblem` (its packed rows and compliance)."""
+        c = problem.compliance
+        return cls(*assemble(problem.dof, problem.hn, problem.ht, c.diagonal, c.block, c.start, c.offset, c.values))
+
+    def __len__(self) -> int:
+        return self.indptr.size - 1
+
+    def times(self, r: np.ndarray) -> np.ndarray:
+        """W r (nc, 2) for impulses r (nc, 2)."""
+        return block_matvec(self.indptr, self.indices, self.data, r)
+
+    def dense(self) -> np.ndarray:
+        """W as a dense (2 nc, 2 nc) array, rows n0, t0, n1, t1, ... (for tests and small problems)."""
+        nc = len(self)
+        out = np.zeros((2 * nc, 2 * nc))
+        for c in range(nc):
+            for p in range(self.indptr[c], self.indptr[c + 1]):
+                d = self.indices[p]
+                out[2 * c:2 * c + 2, 2 * d:2 * d + 2] = self.data[p]
+        return out
+
+
+@numba.njit(cache=True)
+def _groups(dof, block, n_blocks):
+    """The compliance groups and the contacts touching each: (keys (g,), ptr (g + 1,), contacts):
+    group q is dense block keys[q] (< n_blocks) or the 1x1 dof keys[q] - n_blocks, touched by
+    contacts[ptr[q]:ptr[q + 1]] (sorted, unique)."""
+    nc, m = dof.shape
+    pairs = np.empty(nc * m, np.int64)
+    cnt = 0
+    for c in range(nc):
+        for k in range(m):
+            d = dof[c, k]
+            if d >= 0:
+                b = block[d]
+                pairs[cnt] = (b if b >= 0 else n_blocks + d) * nc + c
+                cnt += 1
+    pairs = np.unique(pairs[:cnt])
+    key = pairs // max(nc, 1)
+    contacts = pairs - key * nc
+    ng = 0
+    for i in range(pairs.size):
+        if i == 0 or key[i] != key[i - 1]:
+            ng += 1
+    keys = np.empty(ng, np.int64)
+    ptr = np.empty(ng + 1, np.int64)
+    q = -1
+    for i in range(pairs.size):
+        if i == 0 or key[i] != key[i - 1]:
+            q += 1
+            keys[q] = key[i]
+            ptr[q] = i
+    ptr[ng] = pairs.size
+    return keys, ptr, contacts
+
+
+@numba.njit(cache=True, parallel=True)
+def _group_blocks(dof, hn, ht, diagonal, start, offset, values, n_blocks, keys, ptr, contacts, out_ptr,
+                  rows, cols, vals):
+    """W_G = H_Gᵀ C_G H_G of every group G, written as its k² 2x2 blocks from out_ptr[G]."""
+    m = dof.shape[1]
+    for q in numba.prange(keys.size):
+        K = keys[q]
+        k = ptr[q + 1] - ptr[q]
+        if K < n_blocks:
+            s0 = start[K]
+            s = start[K + 1] - s0
+            C = values[offset[K]:offset[K + 1]].reshape((s, s))
+        else:
+            s0 = K - n_blocks
+            s = 1
+            C = np.full((1, 1), diagonal[s0])
+        Hg = np.zeros((s, 2 * k))
+        for i in range(k):
+            c = contacts[ptr[q] + i]
+            for a in range(m):
+                d = dof[c, a]
+                if d >= s0 and d < s0 + s and (K < n_blocks or d == s0):
+                    Hg[d - s0, 2 * i] += hn[c, a]
+                    Hg[d - s0, 2 * i + 1] += ht[c, a]
+        Wg = Hg.T @ (np.ascontiguousarray(C) @ Hg)
+        o = out_ptr[q]
+        for i in range(k):
+            for j in range(k):
+                rows[o] = contacts[ptr[q] + i]
+                cols[o] = contacts[ptr[q] + j]
+                for x in range(2):
+                    for y in range(2):
+                        vals[o, x, y] = Wg[2 * i + x, 2 * j + y]
+                o += 1
+
+
+@numba.njit(cache=True)
+def assemble(dof, hn, ht, diagonal, block, start, offset, values):
+    """W = Hᵀ C H in block-CSR (module docstring) from packed rows ``dof``, ``hn``, ``ht`` (nc, m)
+    and the compliance arrays: (indptr (nc + 1,), indices (nnzb,), data (nnzb, 2, 2))."""
+    nc = dof.shape[0]
+    n_blocks = start.size - 1
+    keys, ptr, contacts = _groups(dof, block, n_blocks)
+    sizes = np.diff(ptr)
+    out_ptr = np.zeros(keys.size + 1, np.int64)
+    for q in range(keys.size):
+        out_ptr[q + 1] = out_ptr[q] + sizes[q] * sizes[q]
+    total = out_ptr[-1] + nc  # plus a zero diagonal block per contact
+    rows = np.empty(total, np.int64)
+    cols = np.empty(total, np.int64)
+    vals = np.zeros((total, 2, 2))
+    _group_blocks(dof, hn, ht, diagonal, start, offset, values, n_blocks, keys, ptr, contacts, out_ptr,
+                  rows, cols, vals)
+    for c in range(nc):
+        rows[out_ptr[-1] + c] = c
+        cols[out_ptr[-1] + c] = c
+    order = np.argsort(rows * max(nc, 1) + cols, kind="mergesort")
+    indptr = np.zeros(nc + 1, np.int64)
+    indices = np.empty(total, np.int64)
+    data = np.zeros((total, 2, 2))
+    nnz = -1
+    last = -1
+    for i in order:
+        key = rows[i] * nc + cols[i]
+        if key != last:
+            nnz += 1
+            indices[nnz] = cols[i]
+            indptr[rows[i] + 1] += 1
+            last = key
+        data[nnz] += vals[i]
+    for c in range(nc):
+        indptr[c + 1] += indptr[c]
+    return indptr, indices[:nnz + 1].copy(), data[:nnz + 1].copy()
+
+
+@numba.njit(cache=True)
+def block_matvec(indptr, indices, data, r):
+    """W r (nc, 2) of a block-CSR W and impulses r (nc, 2)."""
+    nc = indptr.size - 1
+    u = np.zeros((nc, 2))
+    for c in range(nc):
+        un = 0.0
+        ut = 0.0
+        for p in range(indptr[c], indptr[c + 1]):
+            d = indices[p]
+            un += data[p, 0, 0] * r[d, 0] + data[p, 0, 1] * r[d, 1]
+            ut += data[p, 1, 0] * r[d, 0] + data[p, 1, 1] * r[d, 1]
+        u[c, 0] = un
+        u[c, 1] = ut
+    return u
