@@ -64,25 +64,32 @@ def relative(num, den):
     return np.sqrt(num / den) if den > 0.0 else np.inf
 
 
+@numba.njit(cache=True, inline="always")
+def contact_velocity(dof, hn, ht, gap_term_c, v, c):
+    """(ũ_n, u_t, size) of contact c: H_cᵀ v plus its gap term, and the sum of the magnitudes of
+    the terms (``squared_error``'s rounding scale)."""
+    un = gap_term_c
+    ut = 0.0
+    size = abs(gap_term_c)
+    for k in range(dof.shape[1]):
+        d = dof[c, k]
+        if d >= 0:
+            un += hn[c, k] * v[d]
+            ut += ht[c, k] * v[d]
+            size += abs(hn[c, k] * v[d]) + abs(ht[c, k] * v[d])
+    return un, ut, size
+
+
 @numba.njit(cache=True)
 def natural_map_error(dof, hn, ht, W, gap_term, mu, r, v):
     """‖f‖ / ‖r‖ (module docstring) of impulses r (nc, 2) with velocities v (n_dofs,)
     = v_free + M̂⁻¹ H r; rows of H ``dof``, ``hn``, ``ht`` (nc, m), ``W`` (nc, 2, 2),
     ``gap_term`` (nc,), ``mu`` (nc,). 0 for no contact or r = 0 with every contact open; inf for
     r = 0 with some contact closing; f at rounding level counts as 0 (``squared_error``)."""
-    nc, m = dof.shape
     num = 0.0
     den = 0.0
-    for c in range(nc):
-        un = gap_term[c]
-        ut = 0.0
-        size = abs(gap_term[c])
-        for k in range(m):
-            d = dof[c, k]
-            if d >= 0:
-                un += hn[c, k] * v[d]
-                ut += ht[c, k] * v[d]
-                size += abs(hn[c, k] * v[d]) + abs(ht[c, k] * v[d])
+    for c in range(dof.shape[0]):
+        un, ut, size = contact_velocity(dof, hn, ht, gap_term[c], v, c)
         num += squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size)
         den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
     return relative(num, den)
@@ -96,25 +103,14 @@ def velocity_error(dof, hn, ht, W, gap_term, mu, r, v, v_free):
     Returns (‖e‖ / ‖w‖ over all contacts (2-norms), max_c |e_c| / max_c |w_c|): the first
     bounds the packing's error, the second every contact's. Arrays as in
     ``natural_map_error``, ``v_free`` (n_dofs,) packed like v."""
-    nc, m = dof.shape
     num = 0.0
     den = 0.0
     top = 0.0
     scale = 0.0
-    for c in range(nc):
-        un = gap_term[c]
-        ut = 0.0
-        wn = 0.0
-        wt = 0.0
-        size = abs(gap_term[c])
-        for k in range(m):
-            d = dof[c, k]
-            if d >= 0:
-                un += hn[c, k] * v[d]
-                ut += ht[c, k] * v[d]
-                wn += hn[c, k] * (v[d] - v_free[d])
-                wt += ht[c, k] * (v[d] - v_free[d])
-                size += abs(hn[c, k] * v[d]) + abs(ht[c, k] * v[d])
+    dv = v - v_free
+    for c in range(dof.shape[0]):
+        un, ut, size = contact_velocity(dof, hn, ht, gap_term[c], v, c)
+        wn, wt, _ = contact_velocity(dof, hn, ht, 0.0, dv, c)
         wnn = W[c, 0, 0] if W[c, 0, 0] > 0.0 else 1.0
         e2 = squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size) * wnn * wnn
         w2 = wn * wn + wt * wt
