@@ -1,11 +1,17 @@
-"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait] [--checkpoint-minutes M]``: run a scene."""
+"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait] [--checkpoint-minutes M]``: run a scene.
+
+Exit codes (docs/FORMATS.md): 0 the loading program ran (OUT/COMPLETE or OUT/INCOMPLETE), 2 an
+input error (scene or output folder), 3 a numerical failure (OUT/FAILED), 4 a file of the output
+folder could not be written (full disk, permission, read-only; OUT/FAILED when it could be
+written), 1 anything else (a bug).
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from compute.errors import InputError, SimulationError
+from compute.errors import InputError, OutputWriteError, SimulationError
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,16 +38,25 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(exc))
     from compute.run import run
 
+    return exit_code(lambda: run(a.scene, a.out, resume=a.resume, wait=a.wait, checkpoint_minutes=a.checkpoint_minutes))
+
+
+def exit_code(call) -> int:
+    """``call()`` (a run), its errors told on stderr in one line: the exit code of the module
+    docstring. The studies' compute scripts end the same way."""
     try:
-        run(a.scene, a.out, resume=a.resume, wait=a.wait, checkpoint_minutes=a.checkpoint_minutes)
+        call()
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except SimulationError as exc:
         print(f"simulation failed: {exc}", file=sys.stderr)
         return 3
+    except OutputWriteError as exc:
+        print(f"write failed: {exc}; what was written before is kept: free space or fix the permission, "
+              f"then run again with --resume", file=sys.stderr)
+        return 4
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

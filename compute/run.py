@@ -22,6 +22,7 @@ at high pressure takes minutes, and a machine given back at a fixed time should 
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import signal
@@ -29,12 +30,13 @@ import sys
 import threading
 import time
 import tomllib
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from compute import output, output_folder, summary
-from compute.errors import OutputFolderError, SimulationError
+from compute import files, output, output_folder, summary
+from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
 from compute.progress import Display, RunProgress
 from compute.scene import read_scene
@@ -76,48 +78,60 @@ class Run:
                 gaps = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in self.history.missing)
                 self.log(f"warning: {self.out / 'history.csv'} has no rows for steps {gaps} before the checkpoint "
                          f"at step {self.state.step} (a copy older than the checkpoint); going on from the checkpoint")
+        except OutputWriteError as exc:
+            self._best_effort(lambda: files.write_text(self.out / "FAILED", f"{exc}\n"))
+            output_folder.release(self._lock)
+            raise
         except BaseException:
             output_folder.release(self._lock)
             raise
 
     # --- set-up ------------------------------------------------------------------------
     def _start(self, resume: bool) -> State:
-        (self.out / "frames").mkdir(parents=True, exist_ok=True)
-        (self.out / "checkpoint").mkdir(exist_ok=True)
+        for folder in (self.out / "frames", self.out / "checkpoint"):
+            with files.guarded(folder):
+                folder.mkdir(parents=True, exist_ok=True)
         output.remove_temporaries(self.out)
         ckpt = self.out / CHECKPOINT
-        if resume and ckpt.is_file():
+        frames_csv = self.out / "frames.csv"
+        if resume and files.is_file(ckpt, OutputFolderError):
             self._check_same_scene()
-            with np.load(ckpt) as data:
-                state = State.from_arrays(dict(data))
+            state = _read_checkpoint(ckpt)
             if state.q.shape != (self.model.n_dofs,):
                 raise OutputFolderError(ckpt, "q", f"the {self.model.n_dofs} dofs of the scene's model", state.q.shape)
+            rows = [r for r in output.read_frame_rows(frames_csv) if (r["frame"] or "").isdigit()
+                    and int(r["frame"]) < state.frame]
+            if [int(r["frame"]) for r in rows] != list(range(state.frame)):
+                raise OutputFolderError(frames_csv, "frame", f"the rows of frames 0..{state.frame - 1} written before "
+                                        f"the checkpoint at step {state.step}", [r["frame"] for r in rows])
             for name in (*summary.MARKERS, "FAILED"):  # the run goes on: its last end no longer holds
-                (self.out / name).unlink(missing_ok=True)
-            rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
+                files.remove(self.out / name)
             for f, frame in output.frame_files(self.out).items():
                 if frame >= state.frame:
-                    f.unlink()
-            output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
+                    files.remove(f)
+            output.write_frame_rows(frames_csv, rows)
             output.write_pvd(self.out, rows)
             self.log(f"resuming from step {state.step}, stage {state.stage}, frame {state.frame}")
             return state
         if resume:
             self.log(f"no checkpoint in {self.out}: starting from the scene")
         for f in output.frame_files(self.out):
-            f.unlink()
+            files.remove(f)
         for name in ("frames.csv", CHECKPOINT, "FAILED", "summary.json", *summary.MARKERS):
-            (self.out / name).unlink(missing_ok=True)
-        shutil.copy(self.scene.path / "scene.toml", self.out / "scene.toml")
-        output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, [])
+            files.remove(self.out / name)
+        files.write_atomic(self.out / "scene.toml", lambda tmp: shutil.copyfile(self.scene.path / "scene.toml", tmp))
+        output.write_frame_rows(frames_csv, [])
         return self.model.initial_state()
 
     def _check_same_scene(self) -> None:
         """A run resumes only the scene it was started from (its copy OUT/scene.toml)."""
         started = self.out / "scene.toml"
-        if not started.is_file():
+        if not files.is_file(started, OutputFolderError):
             return
-        before = tomllib.loads(started.read_text())
+        try:
+            before = tomllib.loads(files.read_text(started, OutputFolderError))
+        except tomllib.TOMLDecodeError as exc:
+            raise OutputFolderError(started, "<syntax>", "the copy of the scene's scene.toml", str(exc)) from None
         if before != self.scene.raw:
             changed = sorted(_changed_keys(before, self.scene.raw))
             raise OutputFolderError(started, changed[0], f"the parameters of the scene being resumed "
@@ -130,7 +144,7 @@ class Run:
         written, write FAILED with the diagnosis and raise SimulationError."""
         stages = 1 if self.scene.walls.control == "velocity" else len(self.scene.loading.pressures)
         self.progress = RunProgress(self.out, stages, self._display)
-        status = "failed"
+        finished = False
         on_main = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, self._ask_stop) if on_main else None
         try:
@@ -140,24 +154,43 @@ class Run:
                 while self.state.stage < len(self.scene.loading.pressures):
                     self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
-            done = summary.finish(self.out, self.scene, self.state.step)
-            status = done["status"]
+            done = summary.run_summary(self.out, self.scene, self.state.step)
+            self.progress.finish(done["status"])
+            finished = True
+            summary.write(self.out, done)
             if done["status"] != "complete":
                 self.log("WARNING: run INCOMPLETE: " + summary.incomplete_reasons(done).replace("\n", "; "))
         except (SimulationError, OverflowError, FloatingPointError) as exc:
             failure = exc if isinstance(exc, SimulationError) else SimulationError(
                 f"step {self.state.step + 1}: numerical overflow ({type(exc).__name__}: {exc})")
-            self.history.flush()
-            (self.out / "FAILED").write_text(f"{failure}\n")
-            self.log(f"run stopped: {failure}")
+            self._record_failure(failure)
             raise failure from None
+        except OutputWriteError as exc:
+            self._record_failure(exc)
+            raise
         finally:
             if on_main:
                 signal.signal(signal.SIGTERM, previous)
-            self.progress.finish(status)
-            self.history.close()
+            if not finished:
+                self._best_effort(lambda: self.progress.finish("failed"))
+            self._best_effort(self.history.close)
             output_folder.release(self._lock)
         return self.state
+
+    def _record_failure(self, failure: Exception) -> None:
+        """Keep what was written and say why the run stopped: the history flushed, FAILED with
+        the diagnosis. Each write is best effort: on a full disk the diagnosis still reaches the
+        log, and --resume goes on from the last checkpoint once the cause is fixed."""
+        self._best_effort(self.history.flush)
+        self._best_effort(lambda: files.write_text(self.out / "FAILED", f"{failure}\n"))
+        self.log(f"run stopped: {failure}")
+
+    def _best_effort(self, write) -> None:
+        """``write()``; a file it cannot write is logged, not raised (the run is already stopping)."""
+        try:
+            write()
+        except OutputWriteError as exc:
+            self.log(f"warning: {exc}")
 
     def _ask_stop(self, signum, frame) -> None:
         """SIGTERM handler: stop after this step (module docstring); the next SIGTERM kills."""
@@ -261,11 +294,11 @@ class Run:
         st = self.state
         write_frame_files(self.out, st.frame, self.model, st, self.scene.solver.time_step, pressure)
         b = self.model.bounds(st.q)
-        rows = output.read_csv_rows(self.out / "frames.csv")
+        rows = output.read_frame_rows(self.out / "frames.csv")
         rows.append(dict(frame=st.frame, time=repr(st.time), step=st.step, stage=st.stage,
                          pressure_applied=repr(float(pressure)), equilibrated=int(equilibrated),
                          xmin=repr(float(b[0])), xmax=repr(float(b[1])), ymin=repr(float(b[2])), ymax=repr(float(b[3]))))
-        output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
+        output.write_frame_rows(self.out / "frames.csv", rows)
         output.write_pvd(self.out, rows)
         st.frame += 1
 
@@ -274,11 +307,21 @@ class Run:
         on from it exactly as a run resumed from it would (Stepper.restart_point)."""
         self.stepper.restart_point()
         self.history.flush()
-        path = self.out / CHECKPOINT
-        tmp = path.with_name("state.tmp.npz")
-        np.savez(tmp, **self.state.to_arrays())
-        os.replace(tmp, path)
+        arrays = self.state.to_arrays()
+        files.write_atomic(self.out / CHECKPOINT, lambda tmp: np.savez(tmp, **arrays))
         self._last_checkpoint = time.monotonic()
+
+
+def _read_checkpoint(path: Path) -> State:
+    """The state saved in the checkpoint ``path``; a file that is not one raises
+    OutputFolderError naming it."""
+    data = files.read_bytes(path, OutputFolderError)
+    try:
+        with np.load(io.BytesIO(data)) as arrays:
+            return State.from_arrays(dict(arrays))
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise OutputFolderError(path, "<file>", "a checkpoint written by compute (numpy .npz)",
+                                f"{type(exc).__name__}: {exc}") from None
 
 
 def _changed_keys(a, b, prefix: str = "") -> list[str]:

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from compute.bodies_io import OVERLAP_TOLERANCE, DeformableBody, read_bodies
-from compute import schema
-from compute.errors import SceneError
+from compute import files, schema
+from compute.errors import InputError, SceneError
 
 SCENE_FILE = "scene.toml"
 WALL_NAMES = ("xmin", "xmax", "ymin", "ymax")
@@ -126,17 +126,10 @@ def read_scene(scene_dir: str | Path) -> Scene:
     """Read and validate the scene folder ``scene_dir`` (``scene.toml`` and its bodies file)."""
     scene_dir = Path(scene_dir)
     file = scene_dir / SCENE_FILE
-    if not file.is_file():
-        raise SceneError(file, "<file>", "an existing scene parameter file")
-    try:
-        data = tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(file, "<syntax>", "valid TOML", str(exc)) from None
-    except OSError as exc:
-        raise SceneError(file, "<file>", "a readable scene parameter file", f"{type(exc).__name__}: {exc}") from None
+    data = read_toml(file)
     tables = parse_parameters(file, data)
     bodies_file = scene_dir / tables["bodies"]["file"]
-    if not bodies_file.is_file():
+    if not files.is_file(bodies_file, SceneError):
         raise SceneError(file, "bodies.file", "the name of an existing file in the scene folder",
                          tables["bodies"]["file"])
     bodies = read_bodies(bodies_file, tables["material_names"], tables["materials"])
@@ -144,6 +137,29 @@ def read_scene(scene_dir: str | Path) -> Scene:
     return Scene(path=scene_dir, materials=tables["materials"], material_names=tables["material_names"],
                  friction=tables["friction"], walls=tables["walls"], loading=tables["loading"],
                  solver=tables["solver"], output=tables["output"], raw=data, **bodies)
+
+
+def read_toml(file: str | Path, error: type[InputError] = SceneError) -> dict:
+    """The parsed TOML of a scene parameter file (a scene's, or its copy in an output folder);
+    a missing, unreadable or malformed file raises ``error`` naming it."""
+    if not files.is_file(file, error):
+        raise error(file, "<file>", "an existing scene parameter file")
+    try:
+        return tomllib.loads(files.read_text(file, error))
+    except tomllib.TOMLDecodeError as exc:
+        raise error(file, "<syntax>", "valid TOML", str(exc)) from None
+
+
+def read_parameters(file: str | Path, error: type[InputError] = SceneError) -> dict:
+    """The validated parameters of a scene parameter file alone, without its bodies file (what
+    post and the studies read of a run: the copy OUT/scene.toml): :func:`parse_parameters`'s
+    tables. Every problem raises ``error`` naming the file and the field."""
+    try:
+        return parse_parameters(file, read_toml(file, error))
+    except SceneError as exc:
+        if error is SceneError:
+            raise
+        raise error(exc.file, exc.field, exc.expected, exc.got) from None
 
 
 def parse_parameters(file, data: dict) -> dict:

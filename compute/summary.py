@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from compute import output
+from compute import files, output
 
 MARKERS = ("COMPLETE", "INCOMPLETE")
 
@@ -31,7 +31,7 @@ def run_summary(out: Path, scene, last_step: int) -> dict:
     ``last_step``."""
     tol = scene.solver.nlgs_tolerance
     history = output.read_csv_rows(out / "history.csv")
-    frames = output.read_csv_rows(out / "frames.csv")
+    frames = output.read_frame_rows(out / "frames.csv")
     pressure_control = scene.walls.control == "pressure"
     stages = []
     n_stages = len(scene.loading.pressures) if pressure_control else 1
@@ -64,19 +64,17 @@ def run_summary(out: Path, scene, last_step: int) -> dict:
     }
 
 
-def finish(out: Path, scene, last_step: int) -> dict:
+def write(out: Path, summary: dict) -> None:
     """Write ``summary.json`` and COMPLETE or INCOMPLETE (removing the other) for the run in
-    ``out`` that ended at step ``last_step``; return the summary."""
-    summary = run_summary(out, scene, last_step)
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    ``out`` whose :func:`run_summary` is ``summary``."""
+    files.write_text(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     for name in MARKERS:
-        (out / name).unlink(missing_ok=True)
-    steps = f"{summary['steps']} steps, {sum(1 for _ in output.read_csv_rows(out / 'frames.csv'))} frames\n"
+        files.remove(out / name)
+    steps = f"{summary['steps']} steps, {len(output.read_frame_rows(out / 'frames.csv'))} frames\n"
     if summary["status"] == "complete":
-        (out / "COMPLETE").write_text(steps)
+        files.write_text(out / "COMPLETE", steps)
     else:
-        (out / "INCOMPLETE").write_text(steps + incomplete_reasons(summary) + "\n")
-    return summary
+        files.write_text(out / "INCOMPLETE", steps + incomplete_reasons(summary) + "\n")
 
 
 def incomplete_reasons(summary: dict) -> str:

@@ -12,6 +12,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+from compute import files
 from compute.errors import InputError
 
 
@@ -20,7 +21,7 @@ def read_vtu(path: str | Path, error: type[InputError], allow_empty: bool = Fals
     from meshio import vtu  # not meshio.read, which prints and calls sys.exit on a corrupt file
 
     path = Path(path)
-    if not path.is_file():
+    if not files.is_file(path, error):
         raise error(path, "<file>", "an existing VTU file")
     try:
         return vtu.read(path)

@@ -157,15 +157,15 @@ def test_scene_value_is_refused_with_its_field(scene, old, new, field, expected)
 
 
 def test_unreadable_scene_file(scene, monkeypatch):
-    real = Path.read_text
+    real = Path.read_bytes
 
     def denied(self, *a, **k):
         if self.name == "scene.toml":
             raise PermissionError(13, "Permission denied", str(self))
         return real(self, *a, **k)
 
-    monkeypatch.setattr(Path, "read_text", denied)
-    _expect(scene, "scene.toml", "<file>", "a readable scene parameter file")
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    _expect(scene, "scene.toml", "<file>", "a file this user can read")
 
 
 def test_vertex_cell_past_the_points(scene):
