@@ -1,4 +1,4 @@
-"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait] [--checkpoint-minutes M]``: run a scene.
+"""``python -m compute SCENE_DIR --out OUT_DIR [--resume] [--wait] [--checkpoint-minutes M] [--bodies-outside-scene]``: run a scene.
 
 Exit codes (docs/FORMATS.md): 0 the loading program ran (OUT/COMPLETE or OUT/INCOMPLETE), 2 an
 input error (scene or output folder), 3 a numerical failure (OUT/FAILED), 4 a file of the output
@@ -27,6 +27,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="also checkpoint whenever M minutes of wall time have passed since the last checkpoint "
                         "(the trajectory then depends on when they fell; default: every "
                         "output.checkpoint_every_steps steps only)")
+    p.add_argument("--bodies-outside-scene", action="store_true",
+                   help="accept a bodies file (bodies.file) outside the scene folder (default: refused)")
     a = p.parse_args(argv)
     if a.checkpoint_minutes is not None and not a.checkpoint_minutes > 0.0:
         p.error(f"--checkpoint-minutes: expected a positive number of minutes, got {a.checkpoint_minutes}")
@@ -38,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(exc))
     from compute.run import run
 
-    return exit_code(lambda: run(a.scene, a.out, resume=a.resume, wait=a.wait, checkpoint_minutes=a.checkpoint_minutes))
+    return exit_code(lambda: run(a.scene, a.out, resume=a.resume, wait=a.wait, checkpoint_minutes=a.checkpoint_minutes,
+                                 bodies_outside=a.bodies_outside_scene))
 
 
 def exit_code(call) -> int:

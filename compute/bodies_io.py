@@ -65,6 +65,9 @@ def read_layout(path: str | Path, error: type[InputError] = SceneError) -> Layou
     points = np.asarray(mesh.points, dtype=float)
     if not np.all(np.isfinite(points)) or (points.size and np.abs(points).max() > SCALE):
         raise error(path, "points", f"finite coordinates within ±{SCALE:g}")
+    if points.shape[1] > 2 and np.any(points[:, 2:] != 0.0):
+        i = int(np.flatnonzero(np.any(points[:, 2:] != 0.0, axis=1))[0])
+        raise error(path, "points", "points in the plane z = 0 (the toolkit is 2D)", f"z = {points[i, 2]!r} at point {i}")
     points = points[:, :2]
     for block in mesh.cells:
         if block.type not in ("vertex", *CELL_ELEMENT):

@@ -54,14 +54,16 @@ class Run:
 
     The output folder's lock (:mod:`compute.output_folder`) is held from construction until
     ``execute`` returns; ``wait``: wait for another compute writing the folder instead of
-    refusing. Progress (:mod:`compute.progress`) goes to ``display`` (default: stderr, a bar on a
-    terminal, plain lines otherwise) and to OUT/progress.json."""
+    refusing; ``bodies_outside``: accept a bodies file outside the scene folder (read_scene).
+    Progress (:mod:`compute.progress`) goes to ``display`` (default: stderr, a bar on a terminal,
+    plain lines otherwise) and to OUT/progress.json."""
 
     def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None,
-                 wait: bool = False, display: Display | None = None, checkpoint_minutes: float | None = None):
+                 wait: bool = False, display: Display | None = None, checkpoint_minutes: float | None = None,
+                 bodies_outside: bool = False):
         if checkpoint_minutes is not None and not checkpoint_minutes > 0.0:
             raise ValueError(f"checkpoint_minutes: expected a positive number of minutes, got {checkpoint_minutes!r}")
-        self.scene = read_scene(scene_dir)  # a bad scene stops before anything is written
+        self.scene = read_scene(scene_dir, bodies_outside)  # a bad scene stops before anything is written
         self.checkpoint_seconds = None if checkpoint_minutes is None else 60.0 * checkpoint_minutes
         self._last_checkpoint = time.monotonic()
         self._stop_asked = False
@@ -343,6 +345,7 @@ def build_model(scene) -> Model:
 
 
 def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None, wait: bool = False,
-        checkpoint_minutes: float | None = None) -> State:
+        checkpoint_minutes: float | None = None, bodies_outside: bool = False) -> State:
     """Run the scene in ``scene_dir`` and write frames, history and checkpoints in ``out_dir``."""
-    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait, checkpoint_minutes=checkpoint_minutes).execute()
+    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait, checkpoint_minutes=checkpoint_minutes,
+               bodies_outside=bodies_outside).execute()
