@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute import files, output, output_folder, summary
+from compute import files, output, output_folder, stall, summary
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
 from compute.progress import Display, RunProgress
@@ -150,13 +150,14 @@ class Run:
         on_main = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, self._ask_stop) if on_main else None
         try:
+            stall_diagnosis = None
             if self.scene.walls.control == "velocity":
                 self._velocity_stage()
             else:
-                while self.state.stage < len(self.scene.loading.pressures):
-                    self._pressure_stage(self.scene.loading.pressures[self.state.stage])
+                while self.state.stage < len(self.scene.loading.pressures) and stall_diagnosis is None:
+                    stall_diagnosis = self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
-            done = summary.run_summary(self.out, self.scene, self.state.step)
+            done = summary.run_summary(self.out, self.scene, self.state.step, stall_diagnosis)
             self.progress.finish(done["status"])
             finished = True
             summary.write(self.out, done)
@@ -199,7 +200,9 @@ class Run:
         self._stop_asked = True
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
-    def _pressure_stage(self, pressure: float) -> None:
+    def _pressure_stage(self, pressure: float) -> str | None:
+        """Run the stage to its end; the diagnosis when it stalled (compute.stall: the run ends
+        there), else None."""
         load, st = self.scene.loading, self.state
         previous = load.pressures[st.stage - 1] if st.stage else 0.0
         while True:
@@ -207,6 +210,14 @@ class Run:
             phi = self._record(rep, applied, halvings)
             st.phi_window = np.append(st.phi_window, phi)[-(load.check_every + 1):]
             ramped = st.load_fraction >= 1.0
+            b = self.model.bounds(st.q)
+            stall.record(st, rep.residual, phi, (b[1] - b[0]) * (b[3] - b[2]), ramped, self.scene)
+            if stall.stalled(st, self.scene, rep.residual):
+                self.write_frame(applied, equilibrated=False)
+                diagnosis = stall.diagnosis(st, self.scene, pressure, rep.residual)
+                self.log(diagnosis)
+                self.progress.stage_done()
+                return diagnosis
             if ramped and self._equilibrated(pressure):
                 self.write_frame(pressure, equilibrated=True)
                 self.log(f"stage {st.stage} (P = {pressure:.4g}) equilibrated at step {st.step}: "
@@ -223,7 +234,9 @@ class Run:
         st.stage_steps = 0
         st.phi_window = np.zeros(0)
         load_control.start_stage(st)
+        stall.start_stage(st)
         self.checkpoint()
+        return None
 
     def _velocity_stage(self) -> None:
         load, st = self.scene.loading, self.state

@@ -59,6 +59,7 @@ class Loading:
     inertial_tolerance: float
     check_every: int
     max_steps_per_stage: int
+    stall_steps: int  # 0: no stall rule (compute.stall)
     gravity: tuple[float, float]
     force_tolerance: float  # 0: no wall force-balance check
 

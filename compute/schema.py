@@ -134,6 +134,9 @@ LOADING = (
         low=0.0, high=1.0, default=0.0),
     _count("check_every", "steps of the sliding window of the stage-end test (tested after every step)"),
     _count("max_steps_per_stage", "a stage ends INCOMPLETE after this many steps"),
+    _count("stall_steps", "a stage that makes no progress for this many steps (its contact error above "
+           "nlgs_tolerance and not halving, φ and the walls not moving by phi_tolerance) ends the run "
+           "INCOMPLETE (compute/stall.py; 0: never)", low=0, default=10000),
     Key("gravity", "floats", "gravity [gx, gy]", "length / time²", low=-SCALE, high=SCALE, length=2),
 )
 
