@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute import files, output, output_folder, stall, summary
+from compute import files, output, output_folder, stall, summary, wall_crossing
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
 from compute.progress import Display, RunProgress
@@ -47,6 +47,8 @@ from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
 
 CHECKPOINT = "checkpoint/state.npz"
+# φ above 1 is impossible; the contacts hold nodes to round-off (measured: within 7e-13 of a wall)
+PHI_LIMIT = 1.0 + 1e-9
 
 
 class Run:
@@ -249,12 +251,16 @@ class Run:
         st.stage = 1
 
     def _record(self, rep, pressure: float, halvings: int) -> float:
-        """History row and frames after an accepted step; returns its φ."""
+        """History row and frames after an accepted step; returns its φ. A step whose φ passes 1
+        stops the run with a diagnosis before its row is written."""
         st = self.state
         self.last_contacts = rep.contacts
         st.stage_steps += 1
         b = self.model.bounds(st.q)
         phi = self.model.phi(st.q)
+        if phi > PHI_LIMIT:  # impossible: the step is not kept (compute.wall_crossing says why)
+            raise SimulationError(f"step {st.step} (stage {st.stage}, P = {pressure:.4g}): "
+                                  + wall_crossing.diagnosis(self.model, st.q, phi))
         self.history.append(dict(
             time=st.time, step=st.step, stage=st.stage, pressure_applied=pressure,
             xmin=b[0], xmax=b[1], ymin=b[2], ymax=b[3], phi=phi, nlgs_sweeps=rep.sweeps,
