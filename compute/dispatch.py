@@ -25,7 +25,7 @@ Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE
 (the child finished the loading program but wrote OUT/INCOMPLETE: some stage not equilibrated or
 some contact solve above its tolerance, :mod:`compute.summary`), ``skipped`` (OUT/COMPLETE or
 OUT/INCOMPLETE was already there: the run is finished), ``failed`` (OUT/FAILED holds the diagnosis: a numerical failure
-written by compute, or a scene error / exception written here with the log's tail), ``killed``
+or a file it could not write, written by compute, or a scene error / exception written here with the log's tail), ``killed``
 (the child died by a signal: nothing is marked, the next dispatch resumes it), ``lost`` (the
 Dask task itself failed, e.g. its worker died repeatedly). A run that fails never stops the
 others. Runs with OUT/FAILED are skipped by later dispatches unless ``retry_failed``.
