@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from compute import files
 from compute.errors import InputError, SceneError
 from compute.schema import SCALE, TINY
 from compute.vtu_io import cell_field, read_vtu
@@ -61,9 +62,13 @@ def read_layout(path: str | Path, error: type[InputError] = SceneError) -> Layou
     """Read ``path`` and check the bodies layout (:class:`Layout`); problems raise ``error``."""
     path = Path(path)
     mesh = read_vtu(path, error)
-    points = np.asarray(mesh.points, dtype=float)[:, :2]
+    points = np.asarray(mesh.points, dtype=float)
     if not np.all(np.isfinite(points)) or (points.size and np.abs(points).max() > SCALE):
         raise error(path, "points", f"finite coordinates within ±{SCALE:g}")
+    if points.shape[1] > 2 and np.any(points[:, 2:] != 0.0):
+        i = int(np.flatnonzero(np.any(points[:, 2:] != 0.0, axis=1))[0])
+        raise error(path, "points", "points in the plane z = 0 (the toolkit is 2D)", f"z = {points[i, 2]!r} at point {i}")
+    points = points[:, :2]
     for block in mesh.cells:
         if block.type not in ("vertex", *CELL_ELEMENT):
             raise error(path, "cells", "cell blocks of type vertex, triangle or triangle6", block.type)
@@ -190,7 +195,7 @@ VTU_COMPRESSION = "zlib"
 def write_bodies(path: Path, centres: np.ndarray, radii: np.ndarray, material: np.ndarray,
                  meshes: dict | None = None, point_data: dict | None = None,
                  cell_data: dict | None = None) -> None:
-    """Write bodies in the FORMATS.md layout.
+    """Write bodies in the FORMATS.md layout (atomically, compute.files).
 
     centres (n, 2), radii (n,), material (n,) for every body; ``meshes`` maps a deformable body
     id to ``(points (m, 2), cells (ne, 3|6), element)`` in the current configuration (those
@@ -231,5 +236,6 @@ def write_bodies(path: Path, centres: np.ndarray, radii: np.ndarray, material: n
         for k, v in cell_data.items():
             cdat[k].append(np.concatenate([np.asarray(v["deformable"][b], float) for b, _ in items]))
     pdat = {k: np.concatenate(v) for k, v in pdat.items()}
-    meshio.write(path, meshio.Mesh(np.concatenate(pts), blocks, point_data=pdat, cell_data=cdat),
-                 file_format="vtu", binary=True, compression=VTU_COMPRESSION)
+    mesh = meshio.Mesh(np.concatenate(pts), blocks, point_data=pdat, cell_data=cdat)
+    files.write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu", binary=True,
+                                                      compression=VTU_COMPRESSION))

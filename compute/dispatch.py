@@ -25,7 +25,7 @@ Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE
 (the child finished the loading program but wrote OUT/INCOMPLETE: some stage not equilibrated or
 some contact solve above its tolerance, :mod:`compute.summary`), ``skipped`` (OUT/COMPLETE or
 OUT/INCOMPLETE was already there: the run is finished), ``failed`` (OUT/FAILED holds the diagnosis: a numerical failure
-written by compute, or a scene error / exception written here with the log's tail), ``killed``
+or a file it could not write, written by compute, or a scene error / exception written here with the log's tail), ``killed``
 (the child died by a signal: nothing is marked, the next dispatch resumes it), ``lost`` (the
 Dask task itself failed, e.g. its worker died repeatedly). A run that fails never stops the
 others. Runs with OUT/FAILED are skipped by later dispatches unless ``retry_failed``.
@@ -55,7 +55,7 @@ __all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "
 LOG = "compute.log"
 POLL = 2.0  # seconds between two looks at the running runs' progress
 CHILD_ALREADY_COMPLETE = 10  # child exit code: another process completed the run meanwhile
-_CHILD_CODES = {0: "complete", CHILD_ALREADY_COMPLETE: "skipped", 2: "failed", 3: "failed", 1: "failed"}
+_CHILD_CODES = {0: "complete", CHILD_ALREADY_COMPLETE: "skipped", 2: "failed", 3: "failed", 4: "failed", 1: "failed"}
 _THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
@@ -338,7 +338,7 @@ def _child(argv: list[str] | None = None) -> int:
                 print("FAILED exists: not retried", flush=True)
                 return 3
             (out / "FAILED").unlink()
-        from compute.errors import SimulationError
+        from compute.errors import OutputWriteError, SimulationError
         from compute.run import run
         from compute.threads import configure
 
@@ -353,6 +353,9 @@ def _child(argv: list[str] | None = None) -> int:
         except SimulationError as exc:  # compute.run wrote FAILED
             print(f"simulation failed: {exc}", flush=True)
             return 3
+        except OutputWriteError as exc:  # compute.run wrote FAILED if it could
+            print(f"write failed: {exc}", flush=True)
+            return 4
         except Exception:
             (out / "FAILED").write_text("exception in the run:\n" + traceback.format_exc())
             traceback.print_exc()

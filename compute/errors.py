@@ -6,7 +6,7 @@ class InputError(ValueError):
     was expected."""
 
     def __init__(self, file, field: str, expected: str, got: object = None):
-        self.file, self.field, self.expected = str(file), field, expected
+        self.file, self.field, self.expected, self.got = str(file), field, expected, got
         msg = f"{file}: field '{field}': expected {expected}"
         if got is not None:
             msg += f", got {got!r}"
@@ -20,6 +20,16 @@ class SceneError(InputError):
 class OutputFolderError(InputError):
     """An output folder that cannot be used: not a folder, not writable, written by another
     compute, or holding files this version cannot resume from."""
+
+
+class OutputWriteError(RuntimeError):
+    """A file of the output folder could not be written: a full disk, a permission, a read-only
+    file system. The message names the file and the operating system's reason; what was
+    written before stays (compute.files writes whole files atomically)."""
+
+    def __init__(self, file, reason: str):
+        self.file, self.reason = str(file), reason
+        super().__init__(f"{file}: could not be written: {reason}")
 
 
 class SimulationError(RuntimeError):

@@ -1,20 +1,32 @@
 """Output folder: VTK frames (bodies, contacts, walls), .pvd collections, frames.csv, history.csv.
 
-See docs/FORMATS.md. Frames are written atomically (temporary file, then rename) so that a run
-killed mid-write leaves only complete frames; the .pvd files are regenerated from frames.csv.
+See docs/FORMATS.md. Every file is written through :mod:`compute.files`: whole files atomically
+(temporary file, then rename), so that a run killed mid-write leaves only complete files, and
+an operating-system refusal (full disk, permission) is an OutputWriteError naming the file; the
+.pvd files are regenerated from frames.csv.
+
+frames.csv ends with a line written last, ``#end rows=N crc32=XXXXXXXX``: the number of frame
+rows and the CRC-32 of every byte before that line. Why: a copy cut short, or a file damaged in
+place, otherwise parses as valid rows with wrong numbers (a wall position cut from
+0.8684082602313874 to 0.86840826023). A frames.csv of an earlier version has no end line; it
+is read when its last row is complete (ends with its line break), and a run resumed from it
+rewrites it with one.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import os
+import zlib
 from pathlib import Path
 
 import numpy as np
 
+from compute import files
 from compute.bodies_io import VTU_COMPRESSION
 from compute.contact.rows import ContactRows
-from compute.errors import OutputFolderError
+from compute.errors import InputError, OutputFolderError
 
 FRAME_COLUMNS = ["frame", "time", "step", "stage", "pressure_applied", "equilibrated",
                  "xmin", "xmax", "ymin", "ymax"]
@@ -23,14 +35,14 @@ HISTORY_COLUMNS = ["time", "step", "stage", "pressure_applied", "xmin", "xmax", 
                    "max_penetration", "newton_iterations", "cuts", "load_halvings", "sub_steps", "hold_torque"]
 ADDED_COLUMNS = 2  # trailing columns that histories of earlier versions lack (resumed: left empty, unknown)
 SERIES = ("bodies", "contacts", "walls")
+END_MARK = "#end"  # first word of the last line of frames.csv (module docstring)
 
 
 def _atomic_write_mesh(path: Path, mesh) -> None:
     import meshio
 
-    tmp = path.with_name(path.stem + ".tmp.vtu")
-    meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=VTU_COMPRESSION)
-    os.replace(tmp, path)
+    files.write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu", binary=True,
+                                                      compression=VTU_COMPRESSION))
 
 
 def frame_path(out: str | Path, series: str, frame: int) -> Path:
@@ -39,11 +51,12 @@ def frame_path(out: str | Path, series: str, frame: int) -> Path:
 
 
 def remove_temporaries(out: str | Path) -> None:
-    """Delete what an interrupted atomic write left behind (``*.tmp``, ``frames/*.tmp.vtu``,
-    ``checkpoint/*.tmp.npz``): every file is written to a temporary name, then renamed."""
-    for pattern in ("*.tmp", "frames/*.tmp.vtu", "checkpoint/*.tmp.npz"):
+    """Delete what an interrupted atomic write left behind: every file is written to a
+    temporary name (``NAME.tmp.EXT``, compute.files.temporary), then renamed; ``*.tmp`` are the
+    temporary names of earlier versions."""
+    for pattern in ("*.tmp", "*.tmp.*", "frames/*.tmp.*", "checkpoint/*.tmp.*"):
         for path in Path(out).glob(pattern):
-            path.unlink()
+            files.remove(path)
 
 
 def frame_files(out: str | Path) -> dict[Path, int]:
@@ -108,25 +121,64 @@ def write_pvd(out: Path, rows: list[dict]) -> None:
             lines.append(f'    <DataSet timestep="{float(r["time"])!r}" group="" part="0" '
                          f'file="{frame_path("", series, f).as_posix()}"/>')
         lines += ["  </Collection>", "</VTKFile>", ""]
-        tmp = out / f"{series}.pvd.tmp"
-        tmp.write_text("\n".join(lines))
-        os.replace(tmp, out / f"{series}.pvd")
+        files.write_text(out / f"{series}.pvd", "\n".join(lines))
 
 
-def read_csv_rows(path: Path) -> list[dict]:
-    if not path.is_file():
+def _csv_text(columns: list[str], rows: list[dict]) -> str:
+    stream = io.StringIO()
+    w = csv.DictWriter(stream, fieldnames=columns)
+    w.writeheader()
+    w.writerows(rows)
+    return stream.getvalue()
+
+
+def read_csv_rows(path: Path, error: type[InputError] = OutputFolderError) -> list[dict]:
+    """The rows of a CSV file of the output folder (none when it does not exist); an unreadable
+    file raises ``error`` naming it."""
+    if not files.is_file(path, error):
         return []
-    with open(path, newline="") as fh:
-        return list(csv.DictReader(fh))
+    try:
+        return list(csv.DictReader(io.StringIO(files.read_text(path, error))))
+    except csv.Error as exc:
+        raise error(path, "<file>", "CSV text", str(exc)) from None
 
 
 def write_csv_rows(path: Path, columns: list[str], rows: list[dict]) -> None:
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=columns)
-        w.writeheader()
-        w.writerows(rows)
-    os.replace(tmp, path)
+    files.write_text(path, _csv_text(columns, rows))
+
+
+def _end_line(body: str, rows: int) -> str:
+    return f"{END_MARK} rows={rows} crc32={zlib.crc32(body.encode('utf-8')):08x}\r\n"
+
+
+def write_frame_rows(path: Path, rows: list[dict]) -> None:
+    """frames.csv: the header, one row per frame, and the end line (module docstring)."""
+    body = _csv_text(FRAME_COLUMNS, rows)
+    files.write_text(path, body + _end_line(body, len(rows)))
+
+
+def read_frame_rows(path: Path, error: type[InputError] = OutputFolderError) -> list[dict]:
+    """The rows of a frames.csv (none when it does not exist), checked complete: its end line's
+    row count and CRC-32 (module docstring), or, in a file of an earlier version without one, a
+    last row ended by its line break. Raises ``error`` naming the file otherwise."""
+    if not files.is_file(path, error):
+        return []
+    text = files.read_text(path, error)
+    body, _, last = text.rstrip("\r\n").rpartition("\n")
+    body = body + "\n" if body else ""
+    if last.startswith(END_MARK):
+        try:
+            rows = list(csv.DictReader(io.StringIO(body)))
+        except csv.Error as exc:
+            raise error(path, "<file>", "CSV text", str(exc)) from None
+        if text != body + _end_line(body, len(rows)):
+            raise error(path, "<end line>", f"'{_end_line(body, len(rows)).strip()}': the count and CRC-32 of "
+                        "the rows above it (the file was changed or damaged after it was written)", last)
+        return rows
+    if text and not text.endswith("\n"):
+        raise error(path, "<end line>", f"a last line '{END_MARK} rows=N crc32=...' written after the rows "
+                    "(the file was cut short: its last row is incomplete)", text.splitlines()[-1])
+    return read_csv_rows(path, error)
 
 
 class History:
@@ -139,25 +191,27 @@ class History:
     def __init__(self, path: Path, resume_step: int | None):
         self.path = path
         self.missing: list[tuple[int, int]] = []
-        if resume_step is None or not path.is_file():
-            with open(path, "w", newline="") as fh:
-                csv.writer(fh).writerow(HISTORY_COLUMNS)
-        else:
+        rows = []
+        if resume_step is not None and files.is_file(path, OutputFolderError):
             rows = rows_up_to_step(path, resume_step)
             self.missing = missing_steps([int(r["step"]) for r in rows], resume_step)
-            write_csv_rows(path, HISTORY_COLUMNS, rows)
-        self.fh = open(path, "a", newline="")
+        write_csv_rows(path, HISTORY_COLUMNS, rows)
+        with files.guarded(path):
+            self.fh = open(path, "a", newline="")
         self.writer = csv.writer(self.fh)
 
     def append(self, row: dict) -> None:
-        self.writer.writerow([_fmt(row[k]) for k in HISTORY_COLUMNS])
+        with files.guarded(self.path):
+            self.writer.writerow([_fmt(row[k]) for k in HISTORY_COLUMNS])
 
     def flush(self) -> None:
-        self.fh.flush()
-        os.fsync(self.fh.fileno())
+        with files.guarded(self.path):
+            self.fh.flush()
+            os.fsync(self.fh.fileno())
 
     def close(self) -> None:
-        self.fh.close()
+        with files.guarded(self.path):
+            self.fh.close()
 
 
 def rows_up_to_step(path: Path, step: int) -> list[dict]:
@@ -168,20 +222,22 @@ def rows_up_to_step(path: Path, step: int) -> list[dict]:
     kill, such as ``159.`` or ``159.0,3``) is dropped, however it parses.
     """
     rows = []
-    with open(path, newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        n = len(header or ())
-        if n < len(HISTORY_COLUMNS) - ADDED_COLUMNS or header != HISTORY_COLUMNS[:n]:
-            raise OutputFolderError(path, "header", "the history columns of this version (" + ",".join(HISTORY_COLUMNS)
-                             + "); run again without --resume", header)
-        for fields in reader:
-            row = dict(zip(HISTORY_COLUMNS, fields + [""] * (len(HISTORY_COLUMNS) - n)))
-            if len(fields) != n or not row["step"].isdigit() or int(row["step"]) > step:
-                break
-            rows.append(row)
-            if int(row["step"]) == step:
-                break
+    try:
+        lines = list(csv.reader(io.StringIO(files.read_text(path, OutputFolderError))))
+    except csv.Error as exc:
+        raise OutputFolderError(path, "<file>", "CSV text", str(exc)) from None
+    header = lines[0] if lines else []
+    n = len(header)
+    if n < len(HISTORY_COLUMNS) - ADDED_COLUMNS or header != HISTORY_COLUMNS[:n]:
+        raise OutputFolderError(path, "header", "the history columns of this version (" + ",".join(HISTORY_COLUMNS)
+                                + "); run again without --resume", header)
+    for fields in lines[1:]:
+        row = dict(zip(HISTORY_COLUMNS, fields + [""] * (len(HISTORY_COLUMNS) - n)))
+        if len(fields) != n or not row["step"].isdigit() or int(row["step"]) > step:
+            break
+        rows.append(row)
+        if int(row["step"]) == step:
+            break
     return rows
 
 

@@ -16,10 +16,11 @@ for whoever watches the run from outside, e.g. a study dispatching many runs
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from pathlib import Path
+
+from compute import files
 
 PROGRESS = "progress.json"
 INTERVAL = 30.0  # seconds between two plain lines / two progress.json writes
@@ -153,9 +154,7 @@ class RunProgress:
         if not self.record:
             return
         self._written = time.monotonic()
-        tmp = self.out / (PROGRESS + ".tmp")
-        tmp.write_text(json.dumps(self.record))
-        os.replace(tmp, self.out / PROGRESS)
+        files.write_text(self.out / PROGRESS, json.dumps(self.record))
 
 
 def read_progress(out: str | Path) -> dict | None:

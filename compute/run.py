@@ -22,6 +22,7 @@ at high pressure takes minutes, and a machine given back at a fixed time should 
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import signal
@@ -29,12 +30,13 @@ import sys
 import threading
 import time
 import tomllib
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from compute import output, output_folder, summary
-from compute.errors import OutputFolderError, SimulationError
+from compute import files, output, output_folder, stall, summary, wall_crossing
+from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
 from compute.progress import Display, RunProgress
 from compute.scene import read_scene
@@ -45,6 +47,8 @@ from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
 
 CHECKPOINT = "checkpoint/state.npz"
+# φ above 1 is impossible; the contacts hold nodes to round-off (measured: within 7e-13 of a wall)
+PHI_LIMIT = 1.0 + 1e-9
 
 
 class Run:
@@ -52,14 +56,16 @@ class Run:
 
     The output folder's lock (:mod:`compute.output_folder`) is held from construction until
     ``execute`` returns; ``wait``: wait for another compute writing the folder instead of
-    refusing. Progress (:mod:`compute.progress`) goes to ``display`` (default: stderr, a bar on a
-    terminal, plain lines otherwise) and to OUT/progress.json."""
+    refusing; ``bodies_outside``: accept a bodies file outside the scene folder (read_scene).
+    Progress (:mod:`compute.progress`) goes to ``display`` (default: stderr, a bar on a terminal,
+    plain lines otherwise) and to OUT/progress.json."""
 
     def __init__(self, scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None,
-                 wait: bool = False, display: Display | None = None, checkpoint_minutes: float | None = None):
+                 wait: bool = False, display: Display | None = None, checkpoint_minutes: float | None = None,
+                 bodies_outside: bool = False):
         if checkpoint_minutes is not None and not checkpoint_minutes > 0.0:
             raise ValueError(f"checkpoint_minutes: expected a positive number of minutes, got {checkpoint_minutes!r}")
-        self.scene = read_scene(scene_dir)  # a bad scene stops before anything is written
+        self.scene = read_scene(scene_dir, bodies_outside)  # a bad scene stops before anything is written
         self.checkpoint_seconds = None if checkpoint_minutes is None else 60.0 * checkpoint_minutes
         self._last_checkpoint = time.monotonic()
         self._stop_asked = False
@@ -76,48 +82,60 @@ class Run:
                 gaps = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in self.history.missing)
                 self.log(f"warning: {self.out / 'history.csv'} has no rows for steps {gaps} before the checkpoint "
                          f"at step {self.state.step} (a copy older than the checkpoint); going on from the checkpoint")
+        except OutputWriteError as exc:
+            self._best_effort(lambda: files.write_text(self.out / "FAILED", f"{exc}\n"))
+            output_folder.release(self._lock)
+            raise
         except BaseException:
             output_folder.release(self._lock)
             raise
 
     # --- set-up ------------------------------------------------------------------------
     def _start(self, resume: bool) -> State:
-        (self.out / "frames").mkdir(parents=True, exist_ok=True)
-        (self.out / "checkpoint").mkdir(exist_ok=True)
+        for folder in (self.out / "frames", self.out / "checkpoint"):
+            with files.guarded(folder):
+                folder.mkdir(parents=True, exist_ok=True)
         output.remove_temporaries(self.out)
         ckpt = self.out / CHECKPOINT
-        if resume and ckpt.is_file():
+        frames_csv = self.out / "frames.csv"
+        if resume and files.is_file(ckpt, OutputFolderError):
             self._check_same_scene()
-            with np.load(ckpt) as data:
-                state = State.from_arrays(dict(data))
+            state = _read_checkpoint(ckpt)
             if state.q.shape != (self.model.n_dofs,):
                 raise OutputFolderError(ckpt, "q", f"the {self.model.n_dofs} dofs of the scene's model", state.q.shape)
+            rows = [r for r in output.read_frame_rows(frames_csv) if (r["frame"] or "").isdigit()
+                    and int(r["frame"]) < state.frame]
+            if [int(r["frame"]) for r in rows] != list(range(state.frame)):
+                raise OutputFolderError(frames_csv, "frame", f"the rows of frames 0..{state.frame - 1} written before "
+                                        f"the checkpoint at step {state.step}", [r["frame"] for r in rows])
             for name in (*summary.MARKERS, "FAILED"):  # the run goes on: its last end no longer holds
-                (self.out / name).unlink(missing_ok=True)
-            rows = [r for r in output.read_csv_rows(self.out / "frames.csv") if int(r["frame"]) < state.frame]
+                files.remove(self.out / name)
             for f, frame in output.frame_files(self.out).items():
                 if frame >= state.frame:
-                    f.unlink()
-            output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
+                    files.remove(f)
+            output.write_frame_rows(frames_csv, rows)
             output.write_pvd(self.out, rows)
             self.log(f"resuming from step {state.step}, stage {state.stage}, frame {state.frame}")
             return state
         if resume:
             self.log(f"no checkpoint in {self.out}: starting from the scene")
         for f in output.frame_files(self.out):
-            f.unlink()
+            files.remove(f)
         for name in ("frames.csv", CHECKPOINT, "FAILED", "summary.json", *summary.MARKERS):
-            (self.out / name).unlink(missing_ok=True)
-        shutil.copy(self.scene.path / "scene.toml", self.out / "scene.toml")
-        output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, [])
+            files.remove(self.out / name)
+        files.write_atomic(self.out / "scene.toml", lambda tmp: shutil.copyfile(self.scene.path / "scene.toml", tmp))
+        output.write_frame_rows(frames_csv, [])
         return self.model.initial_state()
 
     def _check_same_scene(self) -> None:
         """A run resumes only the scene it was started from (its copy OUT/scene.toml)."""
         started = self.out / "scene.toml"
-        if not started.is_file():
+        if not files.is_file(started, OutputFolderError):
             return
-        before = tomllib.loads(started.read_text())
+        try:
+            before = tomllib.loads(files.read_text(started, OutputFolderError))
+        except tomllib.TOMLDecodeError as exc:
+            raise OutputFolderError(started, "<syntax>", "the copy of the scene's scene.toml", str(exc)) from None
         if before != self.scene.raw:
             changed = sorted(_changed_keys(before, self.scene.raw))
             raise OutputFolderError(started, changed[0], f"the parameters of the scene being resumed "
@@ -130,41 +148,63 @@ class Run:
         written, write FAILED with the diagnosis and raise SimulationError."""
         stages = 1 if self.scene.walls.control == "velocity" else len(self.scene.loading.pressures)
         self.progress = RunProgress(self.out, stages, self._display)
-        status = "failed"
+        finished = False
         on_main = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, self._ask_stop) if on_main else None
         try:
+            stall_diagnosis = None
             if self.scene.walls.control == "velocity":
                 self._velocity_stage()
             else:
-                while self.state.stage < len(self.scene.loading.pressures):
-                    self._pressure_stage(self.scene.loading.pressures[self.state.stage])
+                while self.state.stage < len(self.scene.loading.pressures) and stall_diagnosis is None:
+                    stall_diagnosis = self._pressure_stage(self.scene.loading.pressures[self.state.stage])
             self.checkpoint()
-            done = summary.finish(self.out, self.scene, self.state.step)
-            status = done["status"]
+            done = summary.run_summary(self.out, self.scene, self.state.step, stall_diagnosis)
+            self.progress.finish(done["status"])
+            finished = True
+            summary.write(self.out, done)
             if done["status"] != "complete":
                 self.log("WARNING: run INCOMPLETE: " + summary.incomplete_reasons(done).replace("\n", "; "))
         except (SimulationError, OverflowError, FloatingPointError) as exc:
             failure = exc if isinstance(exc, SimulationError) else SimulationError(
                 f"step {self.state.step + 1}: numerical overflow ({type(exc).__name__}: {exc})")
-            self.history.flush()
-            (self.out / "FAILED").write_text(f"{failure}\n")
-            self.log(f"run stopped: {failure}")
+            self._record_failure(failure)
             raise failure from None
+        except OutputWriteError as exc:
+            self._record_failure(exc)
+            raise
         finally:
             if on_main:
                 signal.signal(signal.SIGTERM, previous)
-            self.progress.finish(status)
-            self.history.close()
+            if not finished:
+                self._best_effort(lambda: self.progress.finish("failed"))
+            self._best_effort(self.history.close)
             output_folder.release(self._lock)
         return self.state
+
+    def _record_failure(self, failure: Exception) -> None:
+        """Keep what was written and say why the run stopped: the history flushed, FAILED with
+        the diagnosis. Each write is best effort: on a full disk the diagnosis still reaches the
+        log, and --resume goes on from the last checkpoint once the cause is fixed."""
+        self._best_effort(self.history.flush)
+        self._best_effort(lambda: files.write_text(self.out / "FAILED", f"{failure}\n"))
+        self.log(f"run stopped: {failure}")
+
+    def _best_effort(self, write) -> None:
+        """``write()``; a file it cannot write is logged, not raised (the run is already stopping)."""
+        try:
+            write()
+        except OutputWriteError as exc:
+            self.log(f"warning: {exc}")
 
     def _ask_stop(self, signum, frame) -> None:
         """SIGTERM handler: stop after this step (module docstring); the next SIGTERM kills."""
         self._stop_asked = True
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
-    def _pressure_stage(self, pressure: float) -> None:
+    def _pressure_stage(self, pressure: float) -> str | None:
+        """Run the stage to its end; the diagnosis when it stalled (compute.stall: the run ends
+        there), else None."""
         load, st = self.scene.loading, self.state
         previous = load.pressures[st.stage - 1] if st.stage else 0.0
         while True:
@@ -172,6 +212,14 @@ class Run:
             phi = self._record(rep, applied, halvings)
             st.phi_window = np.append(st.phi_window, phi)[-(load.check_every + 1):]
             ramped = st.load_fraction >= 1.0
+            b = self.model.bounds(st.q)
+            stall.record(st, rep.residual, phi, (b[1] - b[0]) * (b[3] - b[2]), ramped, self.scene)
+            if stall.stalled(st, self.scene, rep.residual):
+                self.write_frame(applied, equilibrated=False)
+                diagnosis = stall.diagnosis(st, self.scene, pressure, rep.residual)
+                self.log(diagnosis)
+                self.progress.stage_done()
+                return diagnosis
             if ramped and self._equilibrated(pressure):
                 self.write_frame(pressure, equilibrated=True)
                 self.log(f"stage {st.stage} (P = {pressure:.4g}) equilibrated at step {st.step}: "
@@ -188,7 +236,9 @@ class Run:
         st.stage_steps = 0
         st.phi_window = np.zeros(0)
         load_control.start_stage(st)
+        stall.start_stage(st)
         self.checkpoint()
+        return None
 
     def _velocity_stage(self) -> None:
         load, st = self.scene.loading, self.state
@@ -201,12 +251,16 @@ class Run:
         st.stage = 1
 
     def _record(self, rep, pressure: float, halvings: int) -> float:
-        """History row and frames after an accepted step; returns its φ."""
+        """History row and frames after an accepted step; returns its φ. A step whose φ passes 1
+        stops the run with a diagnosis before its row is written."""
         st = self.state
         self.last_contacts = rep.contacts
         st.stage_steps += 1
         b = self.model.bounds(st.q)
         phi = self.model.phi(st.q)
+        if phi > PHI_LIMIT:  # impossible: the step is not kept (compute.wall_crossing says why)
+            raise SimulationError(f"step {st.step} (stage {st.stage}, P = {pressure:.4g}): "
+                                  + wall_crossing.diagnosis(self.model, st.q, phi))
         self.history.append(dict(
             time=st.time, step=st.step, stage=st.stage, pressure_applied=pressure,
             xmin=b[0], xmax=b[1], ymin=b[2], ymax=b[3], phi=phi, nlgs_sweeps=rep.sweeps,
@@ -261,11 +315,11 @@ class Run:
         st = self.state
         write_frame_files(self.out, st.frame, self.model, st, self.scene.solver.time_step, pressure)
         b = self.model.bounds(st.q)
-        rows = output.read_csv_rows(self.out / "frames.csv")
+        rows = output.read_frame_rows(self.out / "frames.csv")
         rows.append(dict(frame=st.frame, time=repr(st.time), step=st.step, stage=st.stage,
                          pressure_applied=repr(float(pressure)), equilibrated=int(equilibrated),
                          xmin=repr(float(b[0])), xmax=repr(float(b[1])), ymin=repr(float(b[2])), ymax=repr(float(b[3]))))
-        output.write_csv_rows(self.out / "frames.csv", output.FRAME_COLUMNS, rows)
+        output.write_frame_rows(self.out / "frames.csv", rows)
         output.write_pvd(self.out, rows)
         st.frame += 1
 
@@ -274,11 +328,21 @@ class Run:
         on from it exactly as a run resumed from it would (Stepper.restart_point)."""
         self.stepper.restart_point()
         self.history.flush()
-        path = self.out / CHECKPOINT
-        tmp = path.with_name("state.tmp.npz")
-        np.savez(tmp, **self.state.to_arrays())
-        os.replace(tmp, path)
+        arrays = self.state.to_arrays()
+        files.write_atomic(self.out / CHECKPOINT, lambda tmp: np.savez(tmp, **arrays))
         self._last_checkpoint = time.monotonic()
+
+
+def _read_checkpoint(path: Path) -> State:
+    """The state saved in the checkpoint ``path``; a file that is not one raises
+    OutputFolderError naming it."""
+    data = files.read_bytes(path, OutputFolderError)
+    try:
+        with np.load(io.BytesIO(data)) as arrays:
+            return State.from_arrays(dict(arrays))
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise OutputFolderError(path, "<file>", "a checkpoint written by compute (numpy .npz)",
+                                f"{type(exc).__name__}: {exc}") from None
 
 
 def _changed_keys(a, b, prefix: str = "") -> list[str]:
@@ -300,6 +364,7 @@ def build_model(scene) -> Model:
 
 
 def run(scene_dir: str | Path, out_dir: str | Path, resume: bool = False, log=None, wait: bool = False,
-        checkpoint_minutes: float | None = None) -> State:
+        checkpoint_minutes: float | None = None, bodies_outside: bool = False) -> State:
     """Run the scene in ``scene_dir`` and write frames, history and checkpoints in ``out_dir``."""
-    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait, checkpoint_minutes=checkpoint_minutes).execute()
+    return Run(scene_dir, out_dir, resume=resume, log=log, wait=wait, checkpoint_minutes=checkpoint_minutes,
+               bodies_outside=bodies_outside).execute()

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from compute.bodies_io import OVERLAP_TOLERANCE, DeformableBody, read_bodies
-from compute import schema
-from compute.errors import SceneError
+from compute import files, schema
+from compute.errors import InputError, SceneError
 
 SCENE_FILE = "scene.toml"
 WALL_NAMES = ("xmin", "xmax", "ymin", "ymax")
@@ -59,6 +59,7 @@ class Loading:
     inertial_tolerance: float
     check_every: int
     max_steps_per_stage: int
+    stall_steps: int  # 0: no stall rule (compute.stall)
     gravity: tuple[float, float]
     force_tolerance: float  # 0: no wall force-balance check
 
@@ -122,21 +123,21 @@ class Scene:
         return float(2.0 * self.radius.mean())
 
 
-def read_scene(scene_dir: str | Path) -> Scene:
-    """Read and validate the scene folder ``scene_dir`` (``scene.toml`` and its bodies file)."""
+def read_scene(scene_dir: str | Path, bodies_outside: bool = False) -> Scene:
+    """Read and validate the scene folder ``scene_dir`` (``scene.toml`` and its bodies file).
+
+    The bodies file must lie inside the scene folder unless ``bodies_outside`` (``python -m
+    compute --bodies-outside-scene``): a scene is a folder that can be copied, archived and
+    resumed as a whole, and a path such as ``../../x/bodies.vtu`` breaks that silently."""
     scene_dir = Path(scene_dir)
     file = scene_dir / SCENE_FILE
-    if not file.is_file():
-        raise SceneError(file, "<file>", "an existing scene parameter file")
-    try:
-        data = tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(file, "<syntax>", "valid TOML", str(exc)) from None
-    except OSError as exc:
-        raise SceneError(file, "<file>", "a readable scene parameter file", f"{type(exc).__name__}: {exc}") from None
+    data = read_toml(file)
     tables = parse_parameters(file, data)
     bodies_file = scene_dir / tables["bodies"]["file"]
-    if not bodies_file.is_file():
+    if not bodies_outside and not bodies_file.resolve().is_relative_to(scene_dir.resolve()):
+        raise SceneError(file, "bodies.file", "a file inside the scene folder (or python -m compute "
+                         "--bodies-outside-scene)", tables["bodies"]["file"])
+    if not files.is_file(bodies_file, SceneError):
         raise SceneError(file, "bodies.file", "the name of an existing file in the scene folder",
                          tables["bodies"]["file"])
     bodies = read_bodies(bodies_file, tables["material_names"], tables["materials"])
@@ -144,6 +145,29 @@ def read_scene(scene_dir: str | Path) -> Scene:
     return Scene(path=scene_dir, materials=tables["materials"], material_names=tables["material_names"],
                  friction=tables["friction"], walls=tables["walls"], loading=tables["loading"],
                  solver=tables["solver"], output=tables["output"], raw=data, **bodies)
+
+
+def read_toml(file: str | Path, error: type[InputError] = SceneError) -> dict:
+    """The parsed TOML of a scene parameter file (a scene's, or its copy in an output folder);
+    a missing, unreadable or malformed file raises ``error`` naming it."""
+    if not files.is_file(file, error):
+        raise error(file, "<file>", "an existing scene parameter file")
+    try:
+        return tomllib.loads(files.read_text(file, error))
+    except tomllib.TOMLDecodeError as exc:
+        raise error(file, "<syntax>", "valid TOML", str(exc)) from None
+
+
+def read_parameters(file: str | Path, error: type[InputError] = SceneError) -> dict:
+    """The validated parameters of a scene parameter file alone, without its bodies file (what
+    post and the studies read of a run: the copy OUT/scene.toml): :func:`parse_parameters`'s
+    tables. Every problem raises ``error`` naming the file and the field."""
+    try:
+        return parse_parameters(file, read_toml(file, error))
+    except SceneError as exc:
+        if error is SceneError:
+            raise
+        raise error(exc.file, exc.field, exc.expected, exc.got) from None
 
 
 def parse_parameters(file, data: dict) -> dict:
@@ -166,6 +190,7 @@ def parse_parameters(file, data: dict) -> dict:
     if walls.control == "pressure" and not ld["pressures"]:
         raise SceneError(file, "loading.pressures", "a non-empty list of positive numbers", ld["pressures"])
     loading = Loading(**{**ld, "pressures": tuple(ld["pressures"]), "gravity": tuple(ld["gravity"])})
+    _check_pressure_over_young(file, materials, loading.pressures)
     return dict(materials=materials, material_names=list(names), friction=_read_interactions(file, data, names),
                 walls=walls, loading=loading, solver=Solver(**schema.validate(file, "solver.", data.get("solver"),
                                                                              schema.SOLVER)),
@@ -186,6 +211,20 @@ def _read_materials(file, tab) -> dict[str, Material]:
             raise SceneError(file, p + "volumetric", "'standard' for T3 elements (one Gauss point)", v["volumetric"])
         out[name] = Material(name, **v)
     return out
+
+
+def _check_pressure_over_young(file, materials: dict[str, Material], pressures: tuple[float, ...]) -> None:
+    """The largest pressure over each soft material's Young modulus within what the elements
+    handle, schema.PRESSURE_OVER_YOUNG. Measured on the single particle: T3 x 92 reaches P/E = 5
+    (φ = 1); T6 curved edges cross the walls and its φ passes 1 near P/E = 2 (compute.run stops
+    it there); young = 1e-12 or 1e-6 under the default pressures (P/E = 1e9, 1e3) inverts
+    elements at step 2."""
+    top = max(pressures, default=0.0)
+    for m in materials.values():
+        if m.kind == "neo_hookean" and top > schema.PRESSURE_OVER_YOUNG * m.young:
+            raise SceneError(file, "loading.pressures", f"pressures up to {schema.PRESSURE_OVER_YOUNG:g} x the young "
+                             f"modulus of material '{m.name}' ({m.young:g}): the elements do not handle P/E above it",
+                             top)
 
 
 def _read_interactions(file, data: dict, names: list[str]) -> np.ndarray:

@@ -23,6 +23,7 @@ from compute.errors import SceneError
 
 SCHEMA_VERSION = 1
 SCALE = 1e12  # bound of every magnitude (module docstring)
+PRESSURE_OVER_YOUNG = 5.0  # largest P/E of a soft material the elements handle (compute.scene)
 TINY = 1e-12  # smallest positive scale
 COUNT = 10**9  # largest count
 REQUIRED = object()
@@ -82,7 +83,8 @@ def _tolerance(name, doc, low=0.0, **kw) -> Key:
 TOP = (Key("schema_version", "int", "version of this file layout", low=SCHEMA_VERSION, high=SCHEMA_VERSION),)
 
 BODIES = (
-    Key("file", "str", "the bodies file, relative to the scene folder"),
+    Key("file", "str", "the bodies file, relative to the scene folder and inside it (python -m compute "
+        "--bodies-outside-scene: anywhere)"),
     Key("materials", "strs", "material names; the bodies file's cell_data 'material' indexes this list"),
 )
 
@@ -96,7 +98,8 @@ NEO_HOOKEAN = (
     Key("kind", "str", "the material model", options=("neo_hookean",)),
     _positive("density", "mass per unit area", "mass / length²"),
     _positive("young", "Young's modulus E", "pressure"),
-    Key("poisson", "float", "Poisson's ratio ν (plane strain)", low=-1.0, high=0.4999999, open_low=True),
+    Key("poisson", "float", "Poisson's ratio ν (plane strain; the displacement elements lock above 0.499999: the "
+        "single particle fails at 0.4999999)", low=-1.0, high=0.499999, open_low=True),
     Key("element", "str", "finite element", options=("T3", "T6")),
     Key("volumetric", "str", "volumetric integration (T3 elements: standard only)",
         options=("standard", "mean_dilatation")),
@@ -131,6 +134,9 @@ LOADING = (
         low=0.0, high=1.0, default=0.0),
     _count("check_every", "steps of the sliding window of the stage-end test (tested after every step)"),
     _count("max_steps_per_stage", "a stage ends INCOMPLETE after this many steps"),
+    _count("stall_steps", "a stage that makes no progress for this many steps (its contact error above "
+           "nlgs_tolerance and not halving, φ and the walls not moving by phi_tolerance) ends the run "
+           "INCOMPLETE (compute/stall.py; 0: never)", low=0, default=10000),
     Key("gravity", "floats", "gravity [gx, gy]", "length / time²", low=-SCALE, high=SCALE, length=2),
 )
 

@@ -21,7 +21,9 @@ class State:
     ramp (:mod:`compute.stepping.load_control`): ``load_fraction`` λ applied, ``load_increment``
     Δλ of the next step, ``load_accepted`` steps accepted at that increment; the step control's
     (:mod:`compute.stepping.control`) ``cut_depth`` (a step starts as 2**cut_depth sub-steps) and
-    ``cut_accepted`` steps accepted at that depth; ``frame`` the
+    ``cut_accepted`` steps accepted at that depth; the stall rule's memory (:mod:`compute.stall`):
+    ``stall_residual`` the smallest contact error since the stage's last progress, ``stall_phi``
+    and ``stall_area`` φ and the box area at it, ``stall_mark`` its stage step; ``frame`` the
     number of frames written; the contact memory (Verlet list and last impulses) is kept in
     ``pairs``/``impulses`` per contact family and ``q_detect`` (positions at detection).
     """
@@ -39,6 +41,10 @@ class State:
     load_accepted: int = 0
     cut_depth: int = 0
     cut_accepted: int = 0
+    stall_residual: float = np.inf
+    stall_phi: float = np.nan
+    stall_area: float = np.nan
+    stall_mark: int = 0
     q_detect: np.ndarray | None = None
     pairs: dict[str, np.ndarray] = field(default_factory=dict)
     impulses: dict[str, np.ndarray] = field(default_factory=dict)
@@ -48,7 +54,8 @@ class State:
                "scalars": np.array([self.time, self.step, self.stage, self.stage_steps, self.frame]),
                "phi_window": self.phi_window,
                "load": np.array([self.load_fraction, self.load_increment, self.load_accepted]),
-               "cuts": np.array([self.cut_depth, self.cut_accepted])}
+               "cuts": np.array([self.cut_depth, self.cut_accepted]),
+               "stall": np.array([self.stall_residual, self.stall_phi, self.stall_area, self.stall_mark])}
         if self.q_detect is not None:
             out["q_detect"] = self.q_detect
         for k, a in self.pairs.items():
@@ -67,11 +74,14 @@ class State:
         fraction, increment, accepted = a["load"] if "load" in a else (1.0, 1.0, 0)
         # and before the step control kept the depth of its cuts: every step started whole
         depth, depth_accepted = a["cuts"] if "cuts" in a else (0, 0)
+        # and before the stall rule: its memory starts at the resumed step
+        residual, phi, area, mark = a["stall"] if "stall" in a else (np.inf, np.nan, np.nan, stage_steps)
         return cls(q=a["q"].copy(), v=a["v"].copy(), time=float(t), step=int(step), stage=int(stage),
                    stage_steps=int(stage_steps), phi_window=a["phi_window"].copy() if "phi_window" in a else np.zeros(0),
                    frame=int(frame),
                    load_fraction=float(fraction), load_increment=float(increment), load_accepted=int(accepted),
-                   cut_depth=int(depth), cut_accepted=int(depth_accepted),
+                   cut_depth=int(depth), cut_accepted=int(depth_accepted), stall_residual=float(residual),
+                   stall_phi=float(phi), stall_area=float(area), stall_mark=int(mark),
                    q_detect=a["q_detect"].copy() if "q_detect" in a else None,
                    pairs={k: a["pairs_" + k].copy() for k in families},
                    impulses={k: a["impulses_" + k].copy() for k in families})

@@ -4,7 +4,9 @@ A run that went through its whole loading program ends
 
 - ``COMPLETE`` when every pressure stage was equilibrated and every step's contact solve reached
   its tolerance;
-- ``INCOMPLETE`` otherwise: the file lists the stages ended by ``max_steps_per_stage`` and the
+- ``INCOMPLETE`` otherwise: the file gives the diagnosis of a stage that stalled
+  (compute.stall: the run ended there), lists the stages ended by ``max_steps_per_stage`` (or
+  never run after a stall) and the
   number of steps whose contact solve stopped above its tolerance (the frames and history are
   all there, but some numbers are not what the scene asked for).
 
@@ -13,7 +15,8 @@ before the resume too. ``summary.json``: per stage its target pressure, steps, w
 equilibrated, Newton iterations, cuts, load-increment halvings, sub-steps (of the steps whose
 history records them), contact misses and the largest contact residual; and the totals:
 ``steps`` the run's last step, ``history_missing_steps`` the ranges of steps without a row in
-``history.csv`` (compute.output.History; the per-stage sums leave them out).
+``history.csv`` (compute.output.History; the per-stage sums leave them out), ``stalled`` the
+diagnosis of a stalled stage (null when none stalled).
 """
 
 from __future__ import annotations
@@ -21,17 +24,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from compute import output
+from compute import files, output
 
 MARKERS = ("COMPLETE", "INCOMPLETE")
 
 
-def run_summary(out: Path, scene, last_step: int) -> dict:
+def run_summary(out: Path, scene, last_step: int, stalled: str | None = None) -> dict:
     """The summary (module docstring) of the run in ``out`` of ``scene``, which ended at step
-    ``last_step``."""
+    ``last_step``; ``stalled``: the diagnosis of the stage that ended it early (compute.stall)."""
     tol = scene.solver.nlgs_tolerance
     history = output.read_csv_rows(out / "history.csv")
-    frames = output.read_csv_rows(out / "frames.csv")
+    frames = output.read_frame_rows(out / "frames.csv")
     pressure_control = scene.walls.control == "pressure"
     stages = []
     n_stages = len(scene.loading.pressures) if pressure_control else 1
@@ -54,7 +57,8 @@ def run_summary(out: Path, scene, last_step: int) -> dict:
     not_equilibrated = [s["stage"] for s in stages if pressure_control and not s["equilibrated"]]
     misses = sum(s["contact_misses"] for s in stages)
     return {
-        "status": "complete" if not not_equilibrated and not misses else "incomplete",
+        "status": "complete" if not not_equilibrated and not misses and not stalled else "incomplete",
+        "stalled": stalled,
         "steps": last_step,
         "history_missing_steps": output.missing_steps([int(r["step"]) for r in history], last_step),
         "contact_tolerance": tol,
@@ -64,24 +68,24 @@ def run_summary(out: Path, scene, last_step: int) -> dict:
     }
 
 
-def finish(out: Path, scene, last_step: int) -> dict:
+def write(out: Path, summary: dict) -> None:
     """Write ``summary.json`` and COMPLETE or INCOMPLETE (removing the other) for the run in
-    ``out`` that ended at step ``last_step``; return the summary."""
-    summary = run_summary(out, scene, last_step)
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    ``out`` whose :func:`run_summary` is ``summary``."""
+    files.write_text(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     for name in MARKERS:
-        (out / name).unlink(missing_ok=True)
-    steps = f"{summary['steps']} steps, {sum(1 for _ in output.read_csv_rows(out / 'frames.csv'))} frames\n"
+        files.remove(out / name)
+    steps = f"{summary['steps']} steps, {len(output.read_frame_rows(out / 'frames.csv'))} frames\n"
     if summary["status"] == "complete":
-        (out / "COMPLETE").write_text(steps)
+        files.write_text(out / "COMPLETE", steps)
     else:
-        (out / "INCOMPLETE").write_text(steps + incomplete_reasons(summary) + "\n")
-    return summary
+        files.write_text(out / "INCOMPLETE", steps + incomplete_reasons(summary) + "\n")
 
 
 def incomplete_reasons(summary: dict) -> str:
     """One line per reason why a finished run is not COMPLETE."""
     lines = []
+    if summary.get("stalled"):
+        lines.append(summary["stalled"])
     if summary["stages_not_equilibrated"]:
         lines.append(f"stages not equilibrated within max_steps_per_stage: {summary['stages_not_equilibrated']}")
     if summary["contact_misses"]:

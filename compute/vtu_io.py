@@ -12,6 +12,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+from compute import files
 from compute.errors import InputError
 
 
@@ -20,7 +21,7 @@ def read_vtu(path: str | Path, error: type[InputError], allow_empty: bool = Fals
     from meshio import vtu  # not meshio.read, which prints and calls sys.exit on a corrupt file
 
     path = Path(path)
-    if not path.is_file():
+    if not files.is_file(path, error):
         raise error(path, "<file>", "an existing VTU file")
     try:
         return vtu.read(path)
@@ -31,13 +32,13 @@ def read_vtu(path: str | Path, error: type[InputError], allow_empty: bool = Fals
 
 
 def _has_no_cells(path: Path) -> bool:
+    """A complete VTU document (parsed to its end: a file cut short is not empty, it is cut)
+    whose piece has no cells."""
     try:
-        for _, element in ElementTree.iterparse(path, events=("start",)):
-            if element.tag == "Piece":
-                return element.get("NumberOfCells", "").strip() == "0"
+        piece = ElementTree.parse(path).getroot().find("./UnstructuredGrid/Piece")
     except ElementTree.ParseError:
         return False
-    return False
+    return piece is not None and piece.get("NumberOfCells", "").strip() == "0"
 
 
 def cell_field(mesh, path: Path, name: str, error: type[InputError], components: int = 1,

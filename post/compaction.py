@@ -153,7 +153,9 @@ def measure_runs(workdir: Path, study: dict, threshold: float = 1e-9, log: Calla
     have frames. Runs without output, or with unreadable output, are left out (and said so). A
     frame whose files are gone keeps its row of the run's earlier measures.csv (a run resumed on
     another machine from its small files, post.table.measure_output)."""
+    from compute import files
     from compute.dispatch import run_status
+    from compute.output import read_frame_rows
     from post import measures
     from post.errors import OutputError
     from post.table import measure_output, write_measures
@@ -161,13 +163,13 @@ def measure_runs(workdir: Path, study: dict, threshold: float = 1e-9, log: Calla
     tables = {}
     for run in study["runs"]:
         out = Path(workdir) / run["out"]
-        if not (out / "frames.csv").is_file():
-            log(f"  {run['name']}: no output yet, left out")
-            continue
-        if len((out / "frames.csv").read_text().splitlines()) < 2:  # the header alone: running, no stage ended
-            log(f"  {run['name']}: no frame yet ({run_status(out)}), left out")
-            continue
         try:
+            if not files.is_file(out / "frames.csv", OutputError):
+                log(f"  {run['name']}: no output yet, left out")
+                continue
+            if not read_frame_rows(out / "frames.csv", OutputError):  # the header alone: no stage ended yet
+                log(f"  {run['name']}: no frame yet ({run_status(out)}), left out")
+                continue
             rows = measure_output(out, measures.default_min_contacts(run["mu"]), threshold,
                                   kept=out / "post" / "measures.csv")
         except OutputError as exc:

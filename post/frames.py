@@ -3,7 +3,8 @@
 Post reads only files: ``frames.csv`` and, for each of its rows, ``frames/bodies_NNNNN.vtu``,
 ``frames/contacts_NNNNN.vtu`` and ``frames/walls_NNNNN.vtu``. Every reader validates the fields
 it uses and raises :class:`post.errors.OutputError` naming the file, the field and what was
-expected. Vectors are returned with 2 components (the z = 0 component written to VTK is dropped).
+expected (an unreadable file, or a frames.csv cut short or changed after it was written,
+included). Vectors are returned with 2 components (the z = 0 component written to VTK is dropped).
 
 A frame with no contact candidates may be a VTU piece with no cells, which meshio cannot read;
 it is recognised from the piece header and read as zero contacts.
@@ -11,7 +12,6 @@ it is recognised from the piece header and read as zero contacts.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from compute.bodies_io import CELL_ELEMENT, read_layout
-from compute.output import FRAME_COLUMNS, frame_path  # the output layout is written by compute, once
+from compute import files
+from compute.output import FRAME_COLUMNS, frame_path, read_frame_rows  # the output layout is written by compute, once
 from compute.vtu_io import cell_field, read_vtu
 from post.errors import OutputError
 
@@ -117,17 +118,15 @@ class Frame:
 def read_frames_table(out_dir: str | Path) -> list[FrameRecord]:
     """Read and validate ``OUT_DIR/frames.csv``; one record per row, in file order."""
     path = Path(out_dir) / "frames.csv"
-    if not path.is_file():
+    if not files.is_file(path, OutputError):
         raise OutputError(path, "<file>", "an existing CSV file with one row per frame")
-    with path.open(newline="") as stream:
-        reader = csv.DictReader(stream)
-        missing = [c for c in FRAME_COLUMNS if c not in (reader.fieldnames or ())]
-        if missing:
-            raise OutputError(path, missing[0], f"a column (header must hold {', '.join(FRAME_COLUMNS)})",
-                              reader.fieldnames)
-        records = [_frame_record(path, line, row) for line, row in enumerate(reader, start=2)]
-    if not records:
+    rows = read_frame_rows(path, OutputError)  # checked complete (compute.output)
+    if not rows:
         raise OutputError(path, "<rows>", "at least one frame row")
+    missing = [c for c in FRAME_COLUMNS if c not in rows[0]]
+    if missing:
+        raise OutputError(path, missing[0], f"a column (header must hold {', '.join(FRAME_COLUMNS)})", list(rows[0]))
+    records = [_frame_record(path, line, row) for line, row in enumerate(rows, start=2)]
     frames = [r.frame for r in records]
     if len(set(frames)) != len(frames):
         raise OutputError(path, "frame", "unique frame numbers", frames)

@@ -6,45 +6,46 @@ Eq. 2 (the paper's single-particle law): P_p/E = -b ln[(φ_p,max − φ_p)/(φ_p
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
+from compute.bodies_io import CELL_ELEMENT, read_layout
+from compute.scene import SCENE_FILE, Material, read_parameters
 from post.errors import OutputError
 
 
-def soft_material(folder: Path) -> dict:
-    """The (single) neo-Hookean material of a run or scene folder (its scene.toml; compute copies
-    the scene's into the output folder)."""
-    data = tomllib.loads((Path(folder) / "scene.toml").read_text())
-    soft = [m for m in data["materials"].values() if m.get("kind") == "neo_hookean"]
+def soft_material(folder: Path) -> Material:
+    """The (single) neo-Hookean material of a run or scene folder (its scene.toml, read through
+    the scene schema; compute copies the scene's into the output folder)."""
+    file = Path(folder) / SCENE_FILE
+    soft = [m for m in read_parameters(file, OutputError)["materials"].values() if m.kind == "neo_hookean"]
     if len(soft) != 1:
-        raise OutputError(Path(folder) / "scene.toml", "materials", "one neo_hookean material", len(soft))
+        raise OutputError(file, "materials", "one neo_hookean material", len(soft))
     return soft[0]
 
 
 def young_modulus(out: Path) -> float:
     """E of the (single) neo-Hookean material of the run."""
-    return float(soft_material(out)["young"])
+    return soft_material(out).young
 
 
 def element_count(scene: Path) -> int:
-    """Number of triangles of the scene's meshes (its bodies file)."""
-    from meshio import vtu
-
-    return sum(len(c.data) for c in vtu.read(Path(scene) / "bodies.vtu").cells if c.type.startswith("triangle"))
+    """Number of triangles of the scene's meshes (its bodies file, read through the bodies
+    layout)."""
+    layout = read_layout(Path(scene) / "bodies.vtu", OutputError)
+    return sum(len(c.data) for c in layout.mesh.cells if c.type in CELL_ELEMENT)
 
 
 def mesh_label(out: Path) -> str:
     """'T6 standard, 92 elements': the element type, volumetric term and count of the run's soft
-    disk (for legends)."""
+    disk (for legends; '?' elements when the scene folder beside the output is unreadable)."""
     m = soft_material(out)
     try:
         n = element_count(out.parent / "scene")
-    except Exception:  # noqa: BLE001 - the label is cosmetic
+    except OutputError:
         n = "?"
-    return f"{m['element']} {m['volumetric'].replace('_', ' ')}, {n} elements"
+    return f"{m.element} {m.volumetric.replace('_', ' ')}, {n} elements"
 
 
 def curve(out: Path):

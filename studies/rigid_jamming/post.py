@@ -2,21 +2,28 @@
 walls) in DIR/out/post/measures.csv, the force chains and phi, Z against P as PNGs."""
 
 import argparse
-import tomllib
+import sys
 from pathlib import Path
 
+from compute.scene import SCENE_FILE, read_parameters
 from post.__main__ import main as post_main
+from post.errors import OutputError
 
 
-def main(argv=None) -> None:
+def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--workdir", required=True, help="study folder holding WORKDIR/out; writes WORKDIR/out/post")
     a = p.parse_args(argv)
     out = Path(a.workdir) / "out"
-    # the friction decides the rattler rule (2 contacts with friction, 3 without)
-    mu = tomllib.loads((out / "scene.toml").read_text())["interactions"][0]["friction"]
-    post_main([str(out), "--friction", str(mu)])
+    # the friction decides the rattler rule (2 contacts with friction, 3 without); read through the
+    # scene schema, which gives an omitted friction (law = "frictionless", or mu = 0) its value
+    try:
+        mu = float(read_parameters(out / SCENE_FILE, OutputError)["friction"].max())
+    except OutputError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return post_main([str(out), "--friction", repr(mu)])
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

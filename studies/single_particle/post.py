@@ -32,11 +32,18 @@ def main(argv=None) -> int:
     ap.add_argument("--compare", action="append", default=[], metavar="DIR",
                     help="another study folder to draw in the figure (repeatable)")
     a = ap.parse_args(argv)
+    from post.errors import OutputError
     from post.single_particle import curve, fit, mesh_label
     from post.table import write_measures
 
     out = Path(a.workdir) / "out"
-    rows, p, phi = curve(out)
+    try:
+        rows, p, phi = curve(out)
+        label = mesh_label(out)
+        compared = {mesh_label(Path(other) / "out"): curve(Path(other) / "out")[1:] for other in a.compare}
+    except OutputError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     target = out / "post"
     write_measures(rows, target / "measures.csv")
     try:
@@ -51,10 +58,7 @@ def main(argv=None) -> int:
 
     from post.plots import new_figure, plot_single_particle, save_figure
 
-    curves = {mesh_label(out): (p, phi)}
-    for other in a.compare:
-        o = Path(other) / "out"
-        curves[mesh_label(o)] = curve(o)[1:]
+    curves = {label: (p, phi), **compared}
     fig, axes = new_figure(size=(5.5, 4.2))
     ax = axes[0, 0]
     plot_single_particle(ax, curves, result)

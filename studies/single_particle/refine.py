@@ -30,13 +30,13 @@ import csv
 import json
 import subprocess
 import sys
-import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from compute.progress import read_progress
+from compute.scene import SCENE_FILE, read_parameters
 from post.single_particle import curve_errors, element_count, soft_material, write_curve
 from post.table import read_measures
 from pre.single_particle import ELEMENTS
@@ -165,10 +165,10 @@ def main(argv=None) -> int:
             if k in curves:
                 settings = (f"pre settings of the graded series: {a.graded_stages} stages, h = {GRADED_TIME_STEP:g}"
                             if k[2] else "default pre settings")
-                if tomllib.loads((dirs[k] / "scene" / "scene.toml").read_text())["solver"]["hold_rotation"]:
+                if read_parameters(dirs[k] / "scene" / SCENE_FILE)["solver"].hold_rotation:
                     settings += ", rigid rotation held"
                 write_curve(Path(a.data) / name, *curves[k],
-                            f"single-particle curve, T6 {soft_material(dirs[k] / 'scene')['volumetric'].replace('_', ' ')}, "
+                            f"single-particle curve, T6 {soft_material(dirs[k] / 'scene').volumetric.replace('_', ' ')}, "
                             f"{counts[k]} elements"
                             + (f" graded to {k[2]} boundary segments" if k[2] else "")
                             + f", equilibrated stages (python -m studies.single_particle.refine, {settings})")

@@ -121,6 +121,48 @@ def test_missing_bodies_field(scene):
     _expect(scene, "bodies.vtu", "cell_data.radius", "a cell array on every cell block")
 
 
+def test_a_poisson_ratio_the_elements_lock_at_is_refused(tmp_path):
+    """0.4999999 was inside the range, and the single particle failed at stage 1 with it."""
+    from pre.single_particle import write
+
+    scene = write(tmp_path / "scene", element="T3", elements=40, pressures=[1e-3])
+    _edit_toml(scene, r"^poisson = .*$", "poisson = 0.4999999")
+    _expect(scene, "scene.toml", "materials.soft.poisson", "in (-1, 0.499999]")
+
+
+def test_pressures_beyond_what_the_elements_handle_are_refused(tmp_path):
+    """young = 1e-12 under P = 1e-3 (P/E = 1e9) failed at step 2 inverting an element."""
+    from pre.single_particle import write
+
+    scene = write(tmp_path / "scene", element="T3", elements=40, pressures=[1e-3])
+    _edit_toml(scene, r"^young = .*$", "young = 1e-12")
+    _expect(scene, "scene.toml", "loading.pressures", "up to 5 x the young modulus of material 'soft'")
+
+
+def test_points_off_the_plane_are_refused(scene):
+    """A 3D point is not flattened silently: the toolkit is 2D."""
+    import meshio
+
+    f = scene / "bodies.vtu"
+    mesh = meshio.read(f, file_format="vtu")
+    mesh.points[1, 2] = 0.25
+    meshio.write(f, mesh, file_format="vtu")
+    _expect(scene, "bodies.vtu", "points", "points in the plane z = 0")
+
+
+def test_a_bodies_file_outside_the_scene_folder_needs_the_flag(scene, tmp_path, capsys):
+    from compute.__main__ import main
+
+    elsewhere = tmp_path / "x"
+    elsewhere.mkdir()
+    (scene / "bodies.vtu").replace(elsewhere / "bodies.vtu")
+    _edit_toml(scene, r'^file = "bodies.vtu"$', 'file = "../x/bodies.vtu"')
+    _expect(scene, "scene.toml", "bodies.file", "a file inside the scene folder")
+    assert main([str(scene), "--out", str(tmp_path / "out")]) == 2
+    assert "--bodies-outside-scene" in capsys.readouterr().err and not (tmp_path / "out").exists()
+    assert len(read_scene(scene, bodies_outside=True).radius) == 3  # asked for explicitly: read
+
+
 def test_cli_reports_the_error(scene, tmp_path, capsys):
     from compute.__main__ import main
 
@@ -157,15 +199,15 @@ def test_scene_value_is_refused_with_its_field(scene, old, new, field, expected)
 
 
 def test_unreadable_scene_file(scene, monkeypatch):
-    real = Path.read_text
+    real = Path.read_bytes
 
     def denied(self, *a, **k):
         if self.name == "scene.toml":
             raise PermissionError(13, "Permission denied", str(self))
         return real(self, *a, **k)
 
-    monkeypatch.setattr(Path, "read_text", denied)
-    _expect(scene, "scene.toml", "<file>", "a readable scene parameter file")
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    _expect(scene, "scene.toml", "<file>", "a file this user can read")
 
 
 def test_vertex_cell_past_the_points(scene):

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from compute.errors import OutputFolderError
-from compute.output import HISTORY_COLUMNS, History
+from compute.output import HISTORY_COLUMNS, History, read_frame_rows
 from compute.run import run
 from pre.packing import polydisperse_radii, random_loose_packing
 from pre.scene import default_parameters, write_scene
@@ -30,8 +30,7 @@ def _scene(folder: Path) -> Path:
 
 
 def _frames(out: Path) -> list[int]:
-    with open(out / "frames.csv") as fh:
-        return [int(r["frame"]) for r in csv.DictReader(fh)]
+    return [int(r["frame"]) for r in read_frame_rows(out / "frames.csv")]
 
 
 def test_killed_and_resumed_run_matches_uninterrupted(tmp_path):

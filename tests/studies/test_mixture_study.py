@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from compute.output import read_frame_rows
 from compute.scene import read_scene
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -148,7 +149,7 @@ def test_killed_study_finishes_only_the_missing_runs(tmp_path):
     log = [json.loads(line) for line in (w / "dispatch.jsonl").read_text().splitlines()[n_logged:]]
     assert {e["name"]: e["status"] for e in log} == {"k1_mu0.2_s1": "skipped", "k0.5_mu0.2_s1": "complete"}
     assert next(e for e in log if e["name"] == "k0.5_mu0.2_s1")["resumed"]
-    rows = list(csv.DictReader(open(second / "frames.csv")))
+    rows = read_frame_rows(second / "frames.csv")
     assert [r["stage"] for r in rows] == ["0", "1"] and all(r["equilibrated"] == "1" for r in rows)
 
 
