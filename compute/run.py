@@ -9,10 +9,8 @@ balance). Its last state is written as an equilibrated frame. The test runs afte
 over a sliding window of check_every steps. Why: tested only every check_every steps, against
 the φ of the previous test, a stage waited up to check_every - 1 steps past the first one
 that passes, and always ran at least 2 check_every steps; a shorter check_every allows a faster
-creep (φ may drift by phi_tolerance per window). Measured on a 144-disk T6 mixture program
-(benchmarks/results/stage_window_144.md): the same test ends its five stages 8–20 steps
-earlier, 363 steps instead of 440 and 18 % less time, as close as before to the end states of
-a ten times tighter test (4.5e-5 against 4.4e-5 in φ).
+creep (φ may drift by phi_tolerance per window). The sliding window ends stages earlier at the
+same distance from a ten times tighter test (benchmarks/results/stage_window_144.md).
 
 A run asked to stop (SIGTERM) stops at the end of the step it is computing: it writes a
 checkpoint, then dies by that signal, as a killed run (nothing marked, compute.dispatch resumes
@@ -47,7 +45,7 @@ from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
 
 CHECKPOINT = "checkpoint/state.npz"
-# φ above 1 is impossible; the contacts hold nodes to round-off (measured: within 7e-13 of a wall)
+# φ above 1 is impossible; the contacts hold nodes to round-off (compute.wall_crossing)
 PHI_LIMIT = 1.0 + 1e-9
 
 

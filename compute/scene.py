@@ -215,10 +215,8 @@ def _read_materials(file, tab) -> dict[str, Material]:
 
 def _check_pressure_over_young(file, materials: dict[str, Material], pressures: tuple[float, ...]) -> None:
     """The largest pressure over each soft material's Young modulus within what the elements
-    handle, schema.PRESSURE_OVER_YOUNG. Measured on the single particle: T3 x 92 reaches P/E = 5
-    (φ = 1); T6 curved edges cross the walls and its φ passes 1 near P/E = 2 (compute.run stops
-    it there); young = 1e-12 or 1e-6 under the default pressures (P/E = 1e9, 1e3) inverts
-    elements at step 2."""
+    handle, schema.PRESSURE_OVER_YOUNG: beyond it the single particle's elements invert
+    (benchmarks/results/design_figures.md)."""
     top = max(pressures, default=0.0)
     for m in materials.values():
         if m.kind == "neo_hookean" and top > schema.PRESSURE_OVER_YOUNG * m.young:

@@ -153,7 +153,7 @@ SOLVER = (
         "else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py)",
         options=("auto", "nlgs", "block", "nlgs_block", "interior_point"), default="auto"),
     Key("rigid_soft_rows", "str", "rigid disks against soft boundaries: kept off the soft nodes, or off the nodes "
-        "and the boundary segments between them (measured with T3; with T6 the half-edges under pressed disks "
+        "and the boundary segments between them (tried with T3; with T6 the half-edges under pressed disks "
         "oscillate and stages may not end: benchmarks/experiments/README.md)", options=("nodes", "nodes_and_segments"),
         default="nodes"),
     Key("hold_rotation", "bool", "hold each soft body's angular momentum about its centroid at zero (a torque "

@@ -2,11 +2,10 @@
 
 ``configure(n)`` runs before the first parallel kernel: it sets the most threads a run may use
 and OpenMP's wait policy. numba's "omp" layer (GNU libgomp) lets idle threads spin before they
-sleep, which steals a shared core from other jobs. Measured on a 500-disk, all-soft mixture
-(benchmarks/results/threads.md): alone, one thread 28.7 s, two passive threads 23.7 s, two
-spinning threads 23.4 s; beside one busy process, 28.3 s, 28.6 s and 47.2 s. Passive threads
-are the default (a user's OMP_WAIT_POLICY or GOMP_SPINCOUNT wins); numba's "workqueue" layer
-was slower (30.8 s).
+sleep, which steals a shared core from other jobs: beside a busy process, spinning threads
+nearly double a run's time while passive ones cost almost nothing alone
+(benchmarks/results/threads.md). Passive threads are the default (a user's OMP_WAIT_POLICY or
+GOMP_SPINCOUNT wins); numba's "workqueue" layer was slower.
 
 A passive pool pays a wake-up for every parallel kernel launch (about 50 µs here, against 2 µs
 with one thread), which a small group of bodies does not earn back: ``for_bodies(n)`` gives a

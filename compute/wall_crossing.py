@@ -6,11 +6,10 @@ two corners and its midside node, and bulges past a wall between them when its n
 the wall at different depths of the curve. The body's area (the exact area inside the curved
 edges, compute.fem.topology) then counts what lies beyond the walls, and φ passes 1.
 
-Measured on the single particle (T6 x 101, study defaults): every node within 7e-13 of the walls
-at every stage; the curved edges past them by 2.7e-3 R at P/E = 1e-3, 1.7e-2 R at P/E = 1 (area
-beyond the walls 2.1e-3 of the box) and 3.2e-2 R at P/E = 2, where the area beyond the walls,
-9.7e-3 of the box, is exactly φ - 1 (φ = 1.0097; no element folded, the box measure exact).
-compute.run stops a run whose φ passes 1 with this diagnosis.
+On the single particle the nodes stay on the walls to round-off while the curved edges cross
+them at every stage, and the area beyond the walls is exactly φ - 1 where φ passes 1 (figures:
+benchmarks/results/design_figures.md). compute.run stops a run whose φ passes 1 with this
+diagnosis.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ contacts touch, which these blocks give exactly.
 Packed numbering: the contact solver works on the velocities of these dofs only, numbered dense
 block after dense block, then the 1x1 ones. A dense block's dofs are then consecutive, and adding
 one of its columns to v (what every impulse change of a soft body's contact costs) is a
-contiguous axpy instead of a scatter through a list of dofs: measured 1.46–1.54 times faster
-on a 1500-disk mixture's contact updates, which are most of an NLGS sweep.
+contiguous axpy instead of a scatter through a list of dofs, on the contact updates that are
+most of an NLGS sweep (benchmarks/results/packed_velocities.md).
 """
 
 from __future__ import annotations

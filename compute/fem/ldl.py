@@ -19,25 +19,11 @@ Algorithm (after Davis' LDL package, ACM TOMS 2005; Liu's row-subtree characteri
   as no pivot is zero.
 - Compliance: E^T A^-1 E = Y^T D^-1 Y, Y = L^-1 P E. A unit vector at new index s has L^-1 e_s
   nonzero only on the etree path from s to its root, and two such paths share a common suffix,
-  so each entry is a short dot product on that suffix (measured, T6 x 92, m = 20 dofs: 7 times
-  faster than m full solves).
+  so each entry is a short dot product on that suffix (several times faster than m full
+  solves: benchmarks/results/design_figures.md).
 
-Measured on the real patterns (reference_disk_mesh(92, ...), FEBody pattern). nnz_l: strict lower
-triangle of L; flops = sum_j c_j (c_j + 2), the floating-point operations of the numeric kernel
-(c_j = nnz of column j of L, below the diagonal):
-
-    ordering      T3 x 92 (n = 114, nnz(A) = 1412)    T6 x 92 (n = 410, nnz(A) = 8788)
-                  nnz_l     flops                     nnz_l     flops
-    natural        3433    134203                     63805  12766055
-    rcm            1749     33047                     13857    538923
-    rcm_nodes      1749     33047                     13609    517123
-    mmd            1425     22995  <- kept            10285    340455
-    mmd_nodes      1429     23079                      9493    277455  <- kept
-
-rcm: scipy reverse_cuthill_mckee; mmd: SuperLU's multiple minimum degree on A + A^T (splu
-permc_spec="MMD_AT_PLUS_A"); *_nodes: the same on the node graph (dofs 2a, 2a + 1 of node a kept
-together), expanded to dofs. For reference, a greedy minimum-fill ordering of the node graph
-(not included: quadratic cost in pure Python) reaches nnz_l 1405 / 9121, flops 22175 / 253019.
+The orderings kept (mmd for T3, mmd on the node graph for T6) are the ones with the least fill
+and fewest flops on the real patterns (benchmarks/results/design_figures.md).
 """
 
 from __future__ import annotations

@@ -13,19 +13,18 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
 - ``"interior_point"``: :class:`~compute.solvers.interior_point.InteriorPoint`, all contacts of
   the packing solved together (Mehrotra predictor–corrector on the problem's LCP form, sparse
   LU), a number of iterations that does not grow with the packing; ``nlgs_max_sweeps`` bounds
-  its iterations too. It does not yet converge on every frictional rigid packing (a jammed
-  1500-disk packing at μ = 0.2 stalls near 5e-5), so ``auto`` does not choose it;
+  its iterations too. It does not yet converge on every frictional rigid packing, and once per
+  Newton iteration it costs more than warm-started Gauss–Seidel, so ``auto`` does not choose it
+  (benchmarks/results/contact_problems.md);
 - ``"auto"`` (default): ``nlgs`` without soft bodies (every block would be one contact: the same
   iteration, dearer); ``block`` for a scene whose only moving bodies are one soft body and the
-  walls; ``nlgs_block`` for soft bodies among other bodies. Measured: single particle T6 x 92,
-  16 stages: the contact solve takes 0.20 s with ``block`` instead of 0.56 s with ``nlgs`` (the
-  point Gauss–Seidel contracts by only 0.96–0.985 per sweep there, the body's contacts being
-  coupled through its compliance, while the block is one Newton solve). In soft mixtures the
-  slow coupling is between bodies, through the contact network: from the same cold start at
-  P/E = 1 (144 disks, κ = 0.5, μ = 0.2, T3 x 92) ``block`` needs 8016 sweeps to 1e-6 against
-  ``nlgs``'s 8136, at 1.5–4 times the cost per sweep; but while a 500-disk mixture compacts at
-  P/E = 0.32, ``nlgs`` stalls at an error of 1e-3 for thousands of sweeps where ``block`` converges
-  in 2–400 (:mod:`compute.solvers.nlgs_block`), hence ``nlgs_block``.
+  walls; ``nlgs_block`` for soft bodies among other bodies. Why: on one soft body the point
+  Gauss–Seidel contracts slowly, the body's contacts being coupled through its compliance,
+  while the block is one Newton solve. In soft mixtures the slow coupling is between bodies,
+  through the contact network, where blocks take as many sweeps as points at a higher cost per
+  sweep; but while a mixture compacts, ``nlgs`` can stall where ``block`` converges
+  (:mod:`compute.solvers.nlgs_block`), hence ``nlgs_block``. Figures:
+  benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
 
 All stop on the natural-map error of :mod:`compute.solvers.residual`.
 """

@@ -17,10 +17,10 @@ sweeps contract by ρ close to 1, so alone it stops too early.
 Stall detection (``stall_window`` > 0, for a caller with a fallback): every ``stall_window``
 sweeps the natural-map error is evaluated, and the solve stops early, unconverged, when it is not
 below the smallest error of the earlier checks (an iteration that oscillates; one that converges
-slowly goes on). Measured where this happens: in a
-500-disk soft mixture compacting at P/E = 0.32, frictional point Gauss–Seidel oscillates at an
-error of 1e-3–1e-2 for thousands of sweeps (contacts of nearly singular soft corners, W_tt ≈
-100 W_nn, with strong n–t coupling), while without friction it converges.
+slowly goes on). Where this happens: frictional point Gauss–Seidel in a compacting soft
+mixture oscillates for thousands of sweeps on contacts of nearly singular soft corners (W_tt
+much larger than W_nn, with strong n–t coupling), while without friction it converges
+(benchmarks/results/design_figures.md).
 """
 
 from __future__ import annotations

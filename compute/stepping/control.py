@@ -10,10 +10,8 @@ A step that needed cuts still advances time by h and counts as one step; its las
 rescaled to the full h so that forces = impulse / h stay right in frames. Every sub-step's warm
 start is the impulses rescaled to its own length (the same forces). Why: a step that starts
 deeper than d = 0 used to warm-start its first sub-step h / 2**d with impulses over h, 2**d times
-too large; the Gauss–Seidel solvers remove such a uniform excess only slowly. Measured on the
-1500-disk κ = 1 mixture at P/E = 0.32 (steps at h / 4): the first contact solve of each step
-took 562 sweeps, the first ones of its later sub-steps 65–92 (benchmarks/results/
-warm_start_scale.md).
+too large; the Gauss–Seidel solvers remove such a uniform excess only slowly
+(benchmarks/results/warm_start_scale.md).
 
 The depth is kept between steps (``state.cut_depth``): the next step starts at the depth the
 last one ended with, and the depth goes down by one after ``GROW_AFTER`` steps that went no
@@ -21,26 +19,16 @@ deeper (by a cut or after a slow step, below). Why: in a compacting soft mixture
 in runs (a 500-disk mixture at P/E = 0.32: every few steps a whole step fails after its 25
 Newton iterations, some 50 s of a run of 2–10 s steps, while its halves converge); starting
 again from the whole step each time pays that failure again. A failure costs as much as 10–20
-good steps, hence the slow growth; measured on 30 steps of that mixture: 965 s with every step
-starting whole, 284 s growing after 4 steps, 140 s after 16 (benchmarks/results/
-soft_mixture_steps.md).
+good steps, hence the slow growth (benchmarks/results/soft_mixture_steps.md).
 
 A step that converged but was slow, its accepted sub-steps having taken more than
 ``SLOW_ITERATIONS`` Newton iterations each and more than ``SLOW_SWEEPS`` contact-solve sweeps per
 iteration on average, sends the next steps one level deeper (kept one level above ``max_cuts``,
 so that a failure can still be cut). Why: where a step's contact problems are hard, their cost
-grows much faster than the step's length. Measured on a 500-disk soft mixture (κ = 1, μ = 0.2,
-T6) compacting at P/E = 0.32, the same 5 time units from one checkpoint: h = 0.5 in 306 s (per
-step 12 Newton iterations, 1476 sweeps), h = 0.25 in 70 s (6.6, 250), h = 0.125 in 84 s (5.6,
-167); φ within 7e-5 of each other. The Newton iterations per unit time hardly change with h
-there; the sweeps do, and the step that announces it (12 iterations, 487 sweeps) comes before
-one of 2294 sweeps and 115 s. With this rule those 10 steps take 2.6 times less time.
-The thresholds come from the measurements in benchmarks/results/soft_mixture_steps.md: on
-Newton iterations alone, scenes whose iterations are many for other reasons (a strict Newton
-tolerance, a single particle's unstable rotation), and no fewer in smaller steps, ran 1.5–3
-times slower; on sweeps alone the mixture went down to h / 8 and gained less. Judged per
-sub-step, or with 20 sweeps per iteration, one slow quarter among cheap ones (a 30-disk T6
-mixture at P/E = 1: 10.25 iterations and 28 sweeps per iteration) kept it at h / 8, 25 % slower.
+grows much faster than the step's length: in smaller steps the Newton iterations per unit time
+hardly change while the sweeps fall, and the slow step comes before a far slower one. The
+thresholds, judged per step on both counts, come from benchmarks/results/soft_mixture_steps.md
+(figures also in benchmarks/results/design_figures.md).
 """
 
 from __future__ import annotations

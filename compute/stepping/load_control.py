@@ -10,11 +10,9 @@ doubles again. When Δλ is at its floor ``MIN_INCREMENT`` (or the stage's load 
 applied) and the step still fails, the run stops with a diagnosis naming the stage, the
 increment and the step's own diagnosis (which names the bodies).
 
-Why cuts before splits (measured on the single particle, T6 x 92): with h = 100 the jump
-P/E = 1e-3 -> 0.1 is taken by cutting h to h/16, while halving the load increment first, down to
-its floor, ends in a step that fails even with cuts; a jump 1e-3 -> 2 at h = 10 is the other
-way round (four cuts fail, split increments succeed). Cutting first keeps every program that
-converged without load control converging the same way.
+Why cuts before splits: on the single particle some jumps go through only by cutting h and
+others only by splitting the load (benchmarks/results/design_figures.md); cutting first keeps
+every program that converged without load control converging the same way.
 """
 
 from __future__ import annotations

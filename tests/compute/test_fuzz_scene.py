@@ -210,12 +210,9 @@ ALWAYS_REFUSED = {"truncated", "garbage", "unreadable", "missing"}
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> tuple[Path, Path]:
-    from tests.compute.test_write_faults import small_rigid_scene
+    from tests.compute.scenes import finished_rigid_run
 
-    folder = tmp_path_factory.mktemp("fuzz_output")
-    scene = small_rigid_scene(folder / "scene")
-    assert main([str(scene), "--out", str(folder / "out")]) == 0
-    return scene, folder / "out"
+    return finished_rigid_run(tmp_path_factory.mktemp("fuzz_output"))
 
 
 def _unreadable(monkeypatch, path: Path) -> None:

@@ -18,15 +18,12 @@ from compute.__main__ import main as compute_main
 from compute.output import read_frame_rows
 from post.__main__ import main as post_main
 from post.frames import read_frames_table
-from tests.compute.test_write_faults import small_rigid_scene
+from tests.compute.scenes import finished_rigid_run
 
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> tuple[Path, Path]:
-    folder = tmp_path_factory.mktemp("reads")
-    scene = small_rigid_scene(folder / "scene")
-    assert compute_main([str(scene), "--out", str(folder / "out")]) == 0
-    return scene, folder / "out"
+    return finished_rigid_run(tmp_path_factory.mktemp("reads"))
 
 
 @pytest.fixture

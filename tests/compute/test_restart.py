@@ -15,18 +15,11 @@ import pytest
 from compute.errors import OutputFolderError
 from compute.output import HISTORY_COLUMNS, History, read_frame_rows
 from compute.run import run
-from pre.packing import polydisperse_radii, random_loose_packing
-from pre.scene import default_parameters, write_scene
+from tests.compute.scenes import rigid_scene
 
 
 def _scene(folder: Path) -> Path:
-    rng = np.random.default_rng(3)
-    radii = polydisperse_radii(40, rng=rng)
-    centres, box = random_loose_packing(radii, 0.5, rng)
-    p = default_parameters(box, 0.3, 1.0, [1.0, 2.0])
-    p["solver"]["time_step"] = 0.1
-    p["output"].update(checkpoint_every_steps=25, every_steps=100)
-    return write_scene(folder, p, centres, radii, ["rigid"] * 40)
+    return rigid_scene(folder, 40, 3, 25, 100)
 
 
 def _frames(out: Path) -> list[int]:

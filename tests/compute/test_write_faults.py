@@ -13,23 +13,10 @@ import io
 import os
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from compute.__main__ import main
-from pre.packing import polydisperse_radii, random_loose_packing
-from pre.scene import default_parameters, write_scene
-
-
-def small_rigid_scene(folder: Path) -> Path:
-    """20 rigid disks compressed in two stages, a checkpoint every 10 steps and a frame every 40."""
-    rng = np.random.default_rng(4)
-    radii = polydisperse_radii(20, rng=rng)
-    centres, box = random_loose_packing(radii, 0.5, rng)
-    p = default_parameters(box, 0.3, 1.0, [1.0, 2.0])
-    p["solver"]["time_step"] = 0.1
-    p["output"].update(checkpoint_every_steps=10, every_steps=40)
-    return write_scene(folder, p, centres, radii, ["rigid"] * 20)
+from tests.compute.scenes import small_rigid_scene
 
 
 @pytest.fixture(scope="module")
