@@ -12,6 +12,7 @@ recomputed from the returned impulses.
     python benchmarks/contact_problems.py export --scene W3/runs/k0.5_mu0.2_s1/scene --stage 4 --file P/mix144_pe1.npz
     python benchmarks/contact_problems.py export --scene studies/mixture_compaction/results/n1500_t3/rigid/mu0.2_s1/scene --step 1 --file P/rigid1500.npz
     python benchmarks/contact_problems.py compare P/*.npz --solvers nlgs block interior_point --tolerances 1e-6 1e-8
+    python benchmarks/contact_problems.py compare P/rigid1500.npz --solvers interior_point --friction 0.05
 """
 
 from __future__ import annotations
@@ -49,14 +50,12 @@ def save(problem, path: Path, **meta) -> None:
 
 def load(path: Path):
     """The ContactProblem saved in ``path``, with zero impulses; and its metadata."""
-    from compute.contact.compliance import Compliance
+    from compute.contact.compliance import Compliance, delassus_blocks
     from compute.contact.problem import ContactProblem
 
     z = np.load(path)
     comp = Compliance(*(z["c_" + k] for k in COMPLIANCE))
     W = np.empty((len(z["gap_term"]), 2, 2))
-    from compute.contact.compliance import delassus_blocks
-
     delassus_blocks(z["dof"], z["hn"], z["ht"], *comp.arrays(), W)
     p = ContactProblem(z["dof"], z["hn"], z["ht"], W, comp, z["v_free"].copy(), z["gap_term"], z["mu"],
                        np.zeros((len(z["gap_term"]), 2)))
@@ -104,6 +103,8 @@ def solver_of(name: str, tol: float):
 def compare(a) -> None:
     for path in a.problems:
         base, meta = load(path)
+        if a.friction is not None:  # the same problem with another friction coefficient
+            base.mu[base.mu > 0.0] = a.friction
         for name in a.solvers:
             for tol in a.tolerances:
                 p = copy.deepcopy(base)
@@ -131,6 +132,7 @@ def main() -> None:
     c.add_argument("problems", nargs="+", type=Path)
     c.add_argument("--solvers", nargs="+", default=["nlgs", "block", "interior_point"])
     c.add_argument("--tolerances", nargs="+", type=float, default=[1e-6, 1e-8])
+    c.add_argument("--friction", type=float, help="set every frictional contact's μ to this value")
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     export(a) if a.command == "export" else compare(a)
