@@ -45,7 +45,7 @@ from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
 
 CHECKPOINT = "checkpoint/state.npz"
-# φ above 1 is impossible; the contacts hold nodes to round-off (compute.wall_crossing)
+# φ above 1 with a soft boundary beyond the walls stops the run (compute.wall_crossing)
 PHI_LIMIT = 1.0 + 1e-9
 
 
@@ -256,7 +256,7 @@ class Run:
         st.stage_steps += 1
         b = self.model.bounds(st.q)
         phi = self.model.phi(st.q)
-        if phi > PHI_LIMIT:  # impossible: the step is not kept (compute.wall_crossing says why)
+        if phi > PHI_LIMIT and wall_crossing.crossed(self.model, st.q):  # the step is not kept
             raise SimulationError(f"step {st.step} (stage {st.stage}, P = {pressure:.4g}): "
                                   + wall_crossing.diagnosis(self.model, st.q, phi))
         self.history.append(dict(

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 WALL_NAMES = ("xmin", "xmax", "ymin", "ymax")
+CROSSING_LIMIT = 1e-4  # of the body's radius: deeper than the contact tolerance lets a node go, far
+# shallower than the curved edges' crossing (design_figures.md)
 
 
 def _edge_extremes(x0: np.ndarray, xm: np.ndarray, x2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -51,6 +53,15 @@ def deepest_crossing(model, q: np.ndarray) -> tuple[float, str, int, bool]:
             at_node = bool(node_depths.max() >= depths[w, b].max())
             best = (float(depths[w, b].max()), WALL_NAMES[w], int(g.ids[b]), at_node)
     return best
+
+
+def crossed(model, q: np.ndarray) -> bool:
+    """Whether some soft boundary lies beyond a wall by more than CROSSING_LIMIT of its radius:
+    the area beyond the walls that makes φ pass 1. (φ may also pass 1 by a few 1e-5 in a mixture
+    near φ = 1 without it: bodies overlapping within the contact tolerance, rigid disks' arcs
+    inside the soft polygons between their nodes, count twice.)"""
+    depth, _, body, _ = deepest_crossing(model, q)
+    return body >= 0 and depth > CROSSING_LIMIT * float(model.scene.radius[body])
 
 
 def diagnosis(model, q: np.ndarray, phi: float) -> str:

@@ -85,3 +85,25 @@ def test_t6_curved_edges_stay_inside_the_walls(tmp_path):
     run = Run(scene, tmp_path / "out", log=lambda m: None)
     run.execute()
     assert deepest_crossing(run.model, run.state.q)[0] <= 1e-9
+
+
+def test_a_node_past_a_wall_within_the_contact_tolerance_is_not_a_crossing(tmp_path):
+    """A T3 disk (straight edges: its deepest point beyond a wall is a node) moved past wall xmax
+    by depths chosen against CROSSING_LIMIT: 6e-6 R (a node pressed in within the contact
+    tolerance, as in a mixture whose φ passes 1 by overlaps) is not a crossing that stops a run,
+    2e-3 R (the depth of the T6 edges' crossing) is; deepest_crossing reports the depth moved."""
+    from compute.wall_crossing import CROSSING_LIMIT, crossed
+
+    scene = write(tmp_path / "scene", element="T3", pressures=[0.01])
+    run = Run(scene, tmp_path / "out", log=lambda m: None)
+    model, q = run.model, run.state.q.copy()
+    g = model.soft[0]
+    radius = float(model.scene.radius[g.ids[0]])
+    x = g.nodes(q)[0, :, 0]
+    xmax = model.bounds(q)[1]
+    for depth, expected in ((6e-6 * radius, False), (2e-3 * radius, True)):
+        shifted = q.copy()
+        shifted[g.dofs.start:g.dofs.stop:2] += xmax + depth - x.max()  # the rightmost node at xmax + depth
+        assert deepest_crossing(model, shifted)[0] == pytest.approx(depth, rel=1e-6)
+        assert crossed(model, shifted) is expected
+    assert 6e-6 < CROSSING_LIMIT < 2e-3
