@@ -213,7 +213,8 @@ def _variables(mu):
 def _lcp_entries(indptr, indices, data, var0, mu, rho):
     """M in triplets (values, rows, cols): the W part between the (r_n, β⁺, β⁻)
     unknowns of every pair of contacts with a block, the local λ rows and columns, and an explicit
-    (zero) diagonal entry for every unknown."""
+    (zero) diagonal entry for every unknown (so that the crossover's regularisation of a
+    diagonal changes values, not the sparsity structure)."""
     nc = indptr.size - 1
     cap = 0
     for d in range(nc):
