@@ -71,6 +71,7 @@ def export(a) -> None:
 
         class Recorder:
             tolerance = inner.tolerance
+            measure = inner.measure
 
             def solve(self, problem):
                 st = run.state
@@ -94,10 +95,11 @@ def solver_of(name: str, tol: float):
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.interior_point import InteriorPoint
     from compute.solvers.nlgs import NLGS
-    from compute.solvers.nlgs_block import NLGSThenBlock
+    from compute.solvers.nlgs_then import NLGSThen
 
     return {"nlgs": lambda: NLGS(tol, 200_000), "block": lambda: BlockGS(tol, 50_000),
-            "nlgs_block": lambda: NLGSThenBlock(tol, 200_000), "interior_point": lambda: InteriorPoint(tol)}[name]()
+            "nlgs_block": lambda: NLGSThen.block(tol, 200_000), "interior_point": lambda: InteriorPoint(tol),
+            "nlgs_ip": lambda: NLGSThen.interior_point(tol, 200_000)}[name]()
 
 
 def compare(a) -> None:

@@ -109,8 +109,8 @@ def main() -> None:
     b = np.random.default_rng(0).normal(size=(len(p.dof), 2))
     velocities, local_solves, updates = kernels()
     timed = {
-        "sweep": (lambda: nlgs_solve(p.dof, p.hn, p.ht, p.W, p.gap_term, p.mu, p.impulse.copy(), v.copy(), *carr,
-                                     0.0, a.sweeps, 1.0, 0), a.sweeps),
+        "sweep": (lambda: nlgs_solve(p.dof, p.hn, p.ht, p.W, p.gap_term, p.mu, p.impulse.copy(), v.copy(), v.copy(),
+                                     *carr, 0, 0.0, 0.0, a.sweeps, 1.0, 0), a.sweeps),
         "velocities": (lambda: velocities(p.dof, p.hn, p.ht, v), 1),
         "local solves": (lambda: local_solves(p.W, p.mu, b), 1),
         "updates": (lambda: updates(p.dof, p.hn, p.ht, v.copy(), active, *carr), 1),

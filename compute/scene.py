@@ -72,12 +72,14 @@ class Solver:
     time_step: float
     theta: float
     nlgs_tolerance: float
+    contact_error: str  # the error measure of nlgs_tolerance (compute.solvers.residual.Measure)
+    penetration_bound: float  # in mean diameters, 0: none
     nlgs_max_sweeps: int
     relaxation: float
     skin: float
     newton_tolerance: float
     newton_max_iterations: int
-    contact: str  # contact solver: "auto", "nlgs", "block", "nlgs_block", "interior_point" (compute.solvers.for_scene)
+    contact: str  # contact solver: "auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip" (compute.solvers.for_scene)
     rigid_soft_rows: str  # "nodes" or "nodes_and_segments" (compute.contact.soft_rows, segment-disk)
     hold_rotation: bool  # soft bodies' angular momentum about their centroid held at zero (compute.bodies.soft)
 

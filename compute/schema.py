@@ -143,15 +143,21 @@ LOADING = (
 SOLVER = (
     _positive("time_step", "time step h", "time"),
     Key("theta", "float", "θ of the θ-method (1/2: trapezoidal, 1: backward Euler)", low=0.5, high=1.0),
-    _tolerance("nlgs_tolerance", "contact solve: natural-map error |f| / |r|", low=1e-15),
+    _tolerance("nlgs_tolerance", "contact solve: the error of contact_error at which it stops", low=1e-15),
+    Key("contact_error", "str", "the contact solve's error (compute/solvers/residual.py): impulse |f| / |r|, the "
+        "velocity error relative to the velocities the impulses make over the packing (velocity), or at the worst "
+        "contact (velocity_max)", options=("impulse", "velocity", "velocity_max"), default="impulse"),
+    Key("penetration_bound", "float", "contact solve: also no predicted overlap at the end of a step above this, in "
+        "mean diameters (0: no bound)", low=0.0, high=1.0, default=0.0),
     _count("nlgs_max_sweeps", "sweeps of either contact solver"),
     Key("relaxation", "float", "NLGS relaxation", low=0.0, high=1.0, open_low=True),
     Key("skin", "float", "broad-phase skin, in mean diameters", low=0.0, high=10.0, open_low=True),
     _tolerance("newton_tolerance", "Newton loop: position correction, in mean diameters", low=1e-15, default=1e-8),
     Key("newton_max_iterations", "int", "Newton iterations per step attempt", low=1, high=1000, default=20),
     Key("contact", "str", "contact solver (auto: nlgs without soft bodies, block for one soft body alone, "
-        "else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py)",
-        options=("auto", "nlgs", "block", "nlgs_block", "interior_point"), default="auto"),
+        "else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py; nlgs_ip: NLGS, "
+        "the interior point where NLGS stalls, compute/solvers/nlgs_then.py)",
+        options=("auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip"), default="auto"),
     Key("rigid_soft_rows", "str", "rigid disks against soft boundaries: kept off the soft nodes, or off the nodes "
         "and the boundary segments between them (tried with T3; with T6 the half-edges under pressed disks "
         "oscillate and stages may not end: benchmarks/experiments/README.md)", options=("nodes", "nodes_and_segments"),

@@ -27,7 +27,8 @@ class ContactProblem:
     """``dof``, ``hn``, ``ht`` (nc, MAX_DOFS) sparse rows of H over the packed dofs of
     ``compliance`` (:mod:`compute.contact.compliance`); ``W`` (nc, 2, 2); ``v_free`` (n_dofs,)
     over all dofs (a caller may update it in place between solves); ``gap_term`` (nc,); ``mu``
-    (nc,); ``impulse`` (nc, 2) the warm start, overwritten with the solution by a solver."""
+    (nc,); ``impulse`` (nc, 2) the warm start, overwritten with the solution by a solver;
+    ``h_theta`` h θ of the step."""
 
     dof: np.ndarray
     hn: np.ndarray
@@ -38,6 +39,7 @@ class ContactProblem:
     gap_term: np.ndarray
     mu: np.ndarray
     impulse: np.ndarray
+    h_theta: float = 1.0  # h θ: what turns the normal velocity error into an overlap
 
     @classmethod
     def build(cls, contacts: ContactRows, compliance: Compliance, v_free: np.ndarray, v_minus: np.ndarray,
@@ -46,16 +48,17 @@ class ContactProblem:
         un_minus = np.sum(contacts.hn * np.where(contacts.dof >= 0, v_minus[contacts.dof], 0.0), axis=1)
         gap_term = (contacts.gap + h * (1.0 - theta) * un_minus) / (h * theta)
         return cls.of_rows(contacts.dof, contacts.hn, contacts.ht, compliance, v_free, gap_term, contacts.mu,
-                           contacts.impulse)
+                           contacts.impulse, h * theta)
 
     @classmethod
-    def of_rows(cls, dof, hn, ht, compliance: Compliance, v_free, gap_term, mu, impulse) -> "ContactProblem":
+    def of_rows(cls, dof, hn, ht, compliance: Compliance, v_free, gap_term, mu, impulse,
+                h_theta: float = 1.0) -> "ContactProblem":
         """The problem of rows ``dof`` (over global dofs), ``hn``, ``ht`` (nc, m) with the other
         fields as in the class docstring; W computed."""
         packed = compliance.packed_rows(dof)
         W = np.empty((len(gap_term), 2, 2))
         delassus_blocks(packed, hn, ht, *compliance.arrays(), W)
-        return cls(packed, hn, ht, W, compliance, v_free, gap_term, mu, impulse)
+        return cls(packed, hn, ht, W, compliance, v_free, gap_term, mu, impulse, h_theta)
 
     def __len__(self) -> int:
         return len(self.gap_term)

@@ -8,8 +8,10 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
   Signorini–Coulomb solution per contact;
 - ``"block"``: :class:`~compute.solvers.block_gs.BlockGS`, the contacts of each soft body solved
   exactly together (semismooth Newton), Gauss–Seidel over bodies and single contacts;
-- ``"nlgs_block"``: :class:`~compute.solvers.nlgs_block.NLGSThenBlock`, NLGS until it stalls, then
+- ``"nlgs_block"``: :meth:`compute.solvers.nlgs_then.NLGSThen.block`, NLGS until it stalls, then
   block Gauss–Seidel;
+- ``"nlgs_ip"``: :meth:`compute.solvers.nlgs_then.NLGSThen.interior_point`, NLGS until it stalls
+  or is projected to need many sweeps, then the interior point;
 - ``"interior_point"``: :class:`~compute.solvers.interior_point.InteriorPoint`, all contacts of
   the packing solved together (Mehrotra predictor–corrector on the problem's LCP form, sparse
   LU), a number of iterations that does not grow with the packing; ``nlgs_max_sweeps`` bounds
@@ -23,10 +25,12 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
   while the block is one Newton solve. In soft mixtures the slow coupling is between bodies,
   through the contact network, where blocks take as many sweeps as points at a higher cost per
   sweep; but while a mixture compacts, ``nlgs`` can stall where ``block`` converges
-  (:mod:`compute.solvers.nlgs_block`), hence ``nlgs_block``. Figures:
+  (:mod:`compute.solvers.nlgs_then`), hence ``nlgs_block``. Figures:
   benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
 
-All stop on the natural-map error of :mod:`compute.solvers.residual`.
+All stop on the error of :mod:`compute.solvers.residual` that the scene's
+``solver.contact_error`` names (their ``measure``), with its optional penetration bound, and
+report it.
 """
 
 from __future__ import annotations
@@ -51,24 +55,31 @@ class SolveReport:
 
 def for_model(settings, model):
     """The contact solver of ``settings`` (a scene's ``[solver]``) for a :class:`compute.model.Model`."""
-    return for_scene(settings, sum(len(g) for g in model.soft), int(np.count_nonzero(~model.rigid.fixed)))
+    return for_scene(settings, sum(len(g) for g in model.soft), int(np.count_nonzero(~model.rigid.fixed)),
+                     model.diameter)
 
 
-def for_scene(settings, n_soft: int, n_rigid: int):
+def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     """The contact solver of a scene's ``[solver]`` settings (module docstring), for a scene
-    with ``n_soft`` soft bodies and ``n_rigid`` movable rigid disks."""
+    with ``n_soft`` soft bodies, ``n_rigid`` movable rigid disks and mean diameter ``diameter``
+    (the unit of ``penetration_bound``)."""
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.interior_point import InteriorPoint
     from compute.solvers.nlgs import NLGS
-    from compute.solvers.nlgs_block import NLGSThenBlock
+    from compute.solvers.nlgs_then import NLGSThen
+    from compute.solvers.residual import Measure
 
+    measure = Measure(settings.contact_error, settings.penetration_bound * diameter)
+    tol, sweeps = settings.nlgs_tolerance, settings.nlgs_max_sweeps
     kind = settings.contact
     if kind == "auto":
         kind = "nlgs" if n_soft == 0 else "block" if n_rigid == 0 and n_soft == 1 else "nlgs_block"
     if kind == "interior_point":
-        return InteriorPoint(settings.nlgs_tolerance, min(settings.nlgs_max_sweeps, MAX_INTERIOR_POINT_ITERATIONS))
+        return InteriorPoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
     if kind == "block":
-        return BlockGS(settings.nlgs_tolerance, settings.nlgs_max_sweeps)
+        return BlockGS(tol, sweeps, measure)
     if kind == "nlgs_block":
-        return NLGSThenBlock(settings.nlgs_tolerance, settings.nlgs_max_sweeps, settings.relaxation)
-    return NLGS(settings.nlgs_tolerance, settings.nlgs_max_sweeps, settings.relaxation)
+        return NLGSThen.block(tol, sweeps, settings.relaxation, measure)
+    if kind == "nlgs_ip":
+        return NLGSThen.interior_point(tol, sweeps, settings.relaxation, measure)
+    return NLGS(tol, sweeps, settings.relaxation, measure=measure)

@@ -40,7 +40,7 @@ from compute.contact.compliance import add_contact_impulse, block_delassus
 from compute.contact.rows import local_velocity
 from compute.solvers import SolveReport
 from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
-from compute.solvers.residual import natural_map_error, relative, squared_error
+from compute.solvers.residual import Measure, contact_error, relative, squared_error
 
 BLOCK_ITERATIONS = 30
 FALLBACK_SWEEPS = 200
@@ -53,17 +53,19 @@ class BlockGS:
 
     tolerance: float
     max_sweeps: int
+    measure: Measure = Measure()
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
         carr = problem.compliance.arrays()
         order, bstart = blocks_of(problem.dof, problem.compliance.block)
         wb, woff = block_delassus(order, bstart, problem.dof, problem.hn, problem.ht, *carr)
-        v = problem.free_velocity()
+        v_free = problem.free_velocity()
+        v = v_free.copy()
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
         sweeps, error = block_gs_solve(order, bstart, wb, woff, problem.dof, problem.hn, problem.ht, problem.W,
-                                       problem.gap_term, problem.mu, problem.impulse, v, *carr, self.tolerance,
-                                       self.max_sweeps)
+                                       problem.gap_term, problem.mu, problem.impulse, v, v_free, *carr,
+                                       *self.measure.codes(problem, self.tolerance), self.max_sweeps)
         return SolveReport(problem.velocities(v), sweeps, error)
 
 
@@ -207,12 +209,13 @@ def solve_block(W, b, mu, r, tol):
 
 
 @numba.njit(cache=True)
-def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, start, offset,
-                   values, tol, max_sweeps):
+def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, start,
+                   offset, values, kind, tol, bound, max_sweeps):
     """Solve the contact problem in place (module docstring); rows over packed dofs, v (n,)
-    packed velocities that include the warm-start impulses. Returns (sweeps, natural-map error)."""
+    packed velocities that include the warm-start impulses, ``v_free`` (n,); the error measure
+    (kind, tol, bound) of :meth:`compute.solvers.residual.Measure.codes`. Returns (sweeps, error)."""
     nb = bstart.shape[0] - 1
-    error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+    error = contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
     if error <= tol:
         return 0, error
     for sweep in range(1, max_sweeps + 1):
@@ -243,7 +246,7 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                     continue
                 r[c, 0], r[c, 1] = rb[2 * i], rb[2 * i + 1]
                 add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, start, offset, values)
-        error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+        error = contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
         if error <= tol or nb == 1:  # one block: its solve was the whole solve
             return sweep, error
     return max_sweeps, error

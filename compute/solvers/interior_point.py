@@ -50,7 +50,7 @@ import scipy.sparse.linalg as spla
 from compute.contact.delassus import Delassus
 from compute.solvers import SolveReport
 from compute.solvers.nlgs import apply_impulses
-from compute.solvers.residual import natural_map_error, relative, squared_error
+from compute.solvers.residual import Measure, local_contact_error
 
 STEP_TO_BOUNDARY = 0.99  # fraction of the step to the boundary of z, w > 0
 SHORT_STEP = 0.1  # a corrector step shorter than this is replaced by a centring step
@@ -66,17 +66,17 @@ class InteriorPoint:
 
     tolerance: float
     max_iterations: int = 100
+    measure: Measure = Measure()
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem), in place; its warm start is not used."""
         r, iterations, _ = solve_lcp(Delassus.of_problem(problem), local_free_velocity(problem), problem.mu,
-                                     self.tolerance, self.max_iterations)
+                                     self.measure.codes(problem, self.tolerance), self.max_iterations)
         problem.impulse[:] = r
         v = problem.free_velocity()
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *problem.compliance.arrays())
-        error = natural_map_error(problem.dof, problem.hn, problem.ht, problem.W, problem.gap_term, problem.mu,
-                                  problem.impulse, v)
-        return SolveReport(problem.velocities(v), iterations, error)
+        v = problem.velocities(v)
+        return SolveReport(v, iterations, self.measure.error(problem, self.tolerance, v))
 
 
 def local_free_velocity(problem) -> np.ndarray:
@@ -86,8 +86,10 @@ def local_free_velocity(problem) -> np.ndarray:
     return np.stack([np.sum(problem.hn * rows, axis=1) + problem.gap_term, np.sum(problem.ht * rows, axis=1)], 1)
 
 
-def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, tol: float, max_iterations: int):
-    """Impulses r (nc, 2), iterations, natural-map error of u = W r + q (module docstring)."""
+def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, codes: tuple, max_iterations: int):
+    """Impulses r (nc, 2), iterations, error of u = W r + q (module docstring); ``codes`` the
+    measure (kind, tol, bound) of :meth:`compute.solvers.residual.Measure.codes`."""
+    tol = codes[1]
     nc = len(W)
     if nc == 0:
         return np.zeros((0, 2)), 0, 0.0
@@ -109,14 +111,14 @@ def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, tol: float, max_iterat
     tried = previous = None  # the active set whose crossover last failed; the last iterate's
     for it in range(max_iterations + 1):
         r = _impulses(z, var0, rho)
-        error = _error(wnn, W.times(r) + q, r, mu, q)
+        error = _error(codes, wnn, W.times(r) + q, r, mu, q)
         if error < best_error:
             best, best_error = r, error
         if best_error <= tol or it == max_iterations:
             break
         active = z > w
         if previous is not None and np.array_equal(active, previous) and not np.array_equal(active, tried):
-            rx, ex = _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho)
+            rx, ex = _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho, codes)
             if ex < best_error:
                 best, best_error = rx, ex
                 if best_error <= tol:
@@ -147,7 +149,7 @@ def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, tol: float, max_iterat
     return best, it, best_error
 
 
-def _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho):
+def _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho, codes):
     """(r, error) of the best of a few primal-dual active-set steps from the set ``active`` (m,):
     solve M_PP z_P = -b_P with the others zero, then move to P' = {i in P: z_i > 0} ∪ {i not in P:
     w_i < 0}; P' = P is an exact solution. (None, inf) if no step could be taken."""
@@ -166,7 +168,7 @@ def _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho):
                 z[P] -= lu.solve((M @ z + b)[P])
         w = M @ z + b
         r = _impulses(np.maximum(z, 0.0), var0, rho)
-        error = _error(wnn, W.times(r) + q, r, mu, q)
+        error = _error(codes, wnn, W.times(r) + q, r, mu, q)
         if error < best_error:
             best, best_error = r, error
         on = np.zeros(b.size, np.bool_)
@@ -280,16 +282,11 @@ def _impulses(z, var0, rho):
     return r
 
 
-@numba.njit(cache=True)
-def _error(wnn, u, r, mu, q):
-    """Natural-map error ‖f‖ / ‖r‖ (compute.solvers.residual) from local velocities u (nc, 2)."""
-    num = 0.0
-    den = 0.0
-    for c in range(u.shape[0]):
-        size = abs(q[c, 0]) + abs(q[c, 1]) + abs(u[c, 0]) + abs(u[c, 1])
-        num += squared_error(wnn[c], u[c, 0], u[c, 1], r[c, 0], r[c, 1], mu[c], size)
-        den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
-    return relative(num, den)
+def _error(codes, wnn, u, r, mu, q):
+    """The error (compute.solvers.residual) of impulses r (nc, 2) from local velocities u (nc, 2)
+    = W r + q."""
+    size = np.abs(q).sum(axis=1) + np.abs(u).sum(axis=1)
+    return local_contact_error(*codes, wnn, u, u - q, r, mu, size)
 
 
 @numba.njit(cache=True)

@@ -15,9 +15,10 @@ norm) is already below ``tol``: that change understates the error by about 1 / (
 sweeps contract by ρ close to 1, so alone it stops too early.
 
 Stall detection (``stall_window`` > 0, for a caller with a fallback): every ``stall_window``
-sweeps the natural-map error is evaluated, and the solve stops early, unconverged, when it is not
-below the smallest error of the earlier checks (an iteration that oscillates; one that converges
-slowly goes on). Where this happens: frictional point Gauss–Seidel in a compacting soft
+sweeps the error is evaluated, and the solve stops early, unconverged, when it is not below the
+smallest error of the earlier checks (an iteration that oscillates), or, with ``projected_limit``
+> 0, when the contraction of the last window, kept up, would need more than that many further
+sweeps to reach the tolerance (an iteration too slow for the caller's fallback to wait for). Where this happens: frictional point Gauss–Seidel in a compacting soft
 mixture oscillates for thousands of sweeps on contacts of nearly singular soft corners (W_tt
 much larger than W_nn, with strong n–t coupling), while without friction it converges
 (benchmarks/results/design_figures.md).
@@ -33,7 +34,7 @@ import numpy as np
 from compute.contact.compliance import add_compliance, add_contact_impulse
 from compute.contact.rows import generalised_impulse, local_velocity
 from compute.solvers import SolveReport
-from compute.solvers.residual import natural_map_error
+from compute.solvers.residual import Measure, contact_error
 
 
 @dataclass(frozen=True)
@@ -46,15 +47,18 @@ class NLGS:
     max_sweeps: int
     relaxation: float = 1.0
     stall_window: int = 0
+    measure: Measure = Measure()
+    projected_limit: int = 0  # with stall_window: also stalled when the tolerance is this many sweeps away
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
         carr = problem.compliance.arrays()
-        v = problem.free_velocity()
+        v_free = problem.free_velocity()
+        v = v_free.copy()
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
         sweeps, residual = nlgs_solve(problem.dof, problem.hn, problem.ht, problem.W, problem.gap_term, problem.mu,
-                                      problem.impulse, v, *carr, self.tolerance, self.max_sweeps,
-                                      self.relaxation, self.stall_window)
+                                      problem.impulse, v, v_free, *carr, *self.measure.codes(problem, self.tolerance),
+                                      self.max_sweeps, self.relaxation, self.stall_window, self.projected_limit)
         return SolveReport(problem.velocities(v), sweeps, residual)
 
 
@@ -83,17 +87,19 @@ def local_signorini_coulomb(wnn, wnt, wtn, wtt, bn, bt, mu):
 
 
 @numba.njit(cache=True)
-def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, start, offset, values, tol, max_sweeps,
-               relax, stall_window):
+def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, start, offset, values, kind, tol,
+               bound, max_sweeps, relax, stall_window, projected_limit):
     """Solve the contact problem in place.
 
     dof, hn, ht (nc, m): rows of H over packed dofs; W (nc, 2, 2); gap_term (nc,) = g̃ / (h θ);
     mu (nc,); r (nc, 2) impulses (warm start in, solution out); v (n,) packed velocities that
-    already include the warm-start impulses (v = v_free + M̂⁻¹ H r); the compliance arrays of
-    :meth:`compute.contact.compliance.Compliance.arrays`. Returns (sweeps, natural-map error
+    already include the warm-start impulses (v = v_free + M̂⁻¹ H r), ``v_free`` (n,); the
+    compliance arrays of :meth:`compute.contact.compliance.Compliance.arrays`; the error measure
+    (kind, tol, bound) of :meth:`compute.solvers.residual.Measure.codes`. Returns (sweeps, error
     at the stop); stalled (module docstring) if the error is above tol before max_sweeps.
     """
     best = np.inf  # smallest error of the stall checks
+    last = np.inf  # error of the last stall check
     for sweep in range(1, max_sweeps + 1):
         num = 0.0
         den = 0.0
@@ -115,14 +121,18 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, diagonal, block, start, offse
         change = np.sqrt(num / den) if den > 0.0 else 0.0
         stall_check = stall_window > 0 and sweep % stall_window == 0 and sweep < max_sweeps
         if change <= tol or stall_check:
-            error = natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+            error = contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
             if change <= tol and error <= tol:
                 return sweep, error
             if stall_check:
                 if error >= best:
                     return sweep, error
+                if projected_limit > 0 and last < np.inf and \
+                        np.log(tol / error) / np.log(error / last) * stall_window > projected_limit:
+                    return sweep, error  # converging, but too slowly to reach tol within the limit
                 best = error
-    return max_sweeps, natural_map_error(dof, hn, ht, W, gap_term, mu, r, v)
+                last = error
+    return max_sweeps, contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
 
 
 @numba.njit(cache=True)

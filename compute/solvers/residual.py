@@ -13,14 +13,36 @@ not understate the error where the iteration converges slowly. Being one norm ov
 bounds the violation of the packing, not of each contact: in a 144-disk T3 mixture at P/E = 1
 (about 1100 active contacts) 36 rigid-disk-against-segment rows stay 1–2.5e-3 inside from step
 to step at a tolerance of 1e-4 and are pushed out at 1e-6 (benchmarks/experiments/README.md).
+
+Measures (:class:`Measure`, a scene's ``solver.contact_error``):
+
+- ``"impulse"``: ‖f‖ / ‖r‖, f with ρ_c = 1 / W_nn,c. It weights each contact's velocity error by
+  1 / W_nn,c, so it understates the error of compliant contacts (a soft body's node, W_nn up to
+  hundreds of times a rigid disk's) and of a static packing, whose impulses are large against
+  the velocities they make.
+- ``"velocity"``: the same f in velocity units, e_c = W_nn,c f_c (the projection is positively
+  homogeneous, so e_c is the error of contact c's velocity whatever its compliance), relative to
+  the velocities the impulses make, w_c = (W r)_c = H_cᵀ (v - v_free): ‖e‖ / ‖w‖ over the packing.
+- ``"velocity_max"``: max_c |e_c| / max_c |w_c|, which holds every contact, not the packing's
+  mean.
+
+A penetration bound δ (a length, ``Measure.penetration``) adds the test that no contact's
+predicted end-of-step gap g̃ + h θ u_n is below -δ: the error reported is then
+max(error, tolerance · overlap / δ), at most the tolerance exactly when both hold, so every
+solver and the Newton loop keep one number to stop on and to report.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 ROUNDING = 1e-13
+
+IMPULSE, VELOCITY, VELOCITY_MAX = 0, 1, 2  # the measures of ``Measure.kind``, as the kernels take them
+KINDS = {"impulse": IMPULSE, "velocity": VELOCITY, "velocity_max": VELOCITY_MAX}
 
 
 @numba.njit(cache=True, inline="always")
@@ -81,41 +103,89 @@ def contact_velocity(dof, hn, ht, gap_term_c, v, c):
 
 
 @numba.njit(cache=True)
-def natural_map_error(dof, hn, ht, W, gap_term, mu, r, v):
-    """‖f‖ / ‖r‖ (module docstring) of impulses r (nc, 2) with velocities v (n_dofs,)
-    = v_free + M̂⁻¹ H r; rows of H ``dof``, ``hn``, ``ht`` (nc, m), ``W`` (nc, 2, 2),
-    ``gap_term`` (nc,), ``mu`` (nc,). 0 for no contact or r = 0 with every contact open; inf for
-    r = 0 with some contact closing; f at rounding level counts as 0 (``squared_error``)."""
-    num = 0.0
-    den = 0.0
-    for c in range(dof.shape[0]):
-        un, ut, size = contact_velocity(dof, hn, ht, gap_term[c], v, c)
-        num += squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size)
-        den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
-    return relative(num, den)
-
-
-@numba.njit(cache=True)
-def velocity_error(dof, hn, ht, W, gap_term, mu, r, v, v_free):
-    r"""The natural-map error in velocity units: per contact e_c = W_nn,c f_c (f_c with
-    ρ_c = 1 / W_nn,c, so that e_c is the velocity error of contact c whatever its compliance),
-    relative to the velocities the impulses make, w_c = H_cᵀ (v - v_free) (= (W r)_c).
-    Returns (‖e‖ / ‖w‖ over all contacts (2-norms), max_c |e_c| / max_c |w_c|): the first
-    bounds the packing's error, the second every contact's. Arrays as in
-    ``natural_map_error``, ``v_free`` (n_dofs,) packed like v."""
+def local_contact_error(kind, tol, bound, wnn, u, w, r, mu, size):
+    """The error of ``kind`` (IMPULSE, VELOCITY, VELOCITY_MAX, module docstring) from per-contact
+    arrays: ``wnn`` (nc,) W_nn,c, ``u`` (nc, 2) (ũ_n, u_t), ``w`` (nc, 2) (W r)_c (unused for
+    IMPULSE), ``r`` (nc, 2), ``mu`` (nc,), ``size`` (nc,) the rounding scale of u
+    (``squared_error``). With ``bound`` > 0 (an overlap in velocity units, δ / (h θ)) the
+    penetration test is folded in: max(error, tol · max_c(-ũ_n,c) / bound)."""
     num = 0.0
     den = 0.0
     top = 0.0
     scale = 0.0
-    dv = v - v_free
-    for c in range(dof.shape[0]):
-        un, ut, size = contact_velocity(dof, hn, ht, gap_term[c], v, c)
-        wn, wt, _ = contact_velocity(dof, hn, ht, 0.0, dv, c)
-        wnn = W[c, 0, 0] if W[c, 0, 0] > 0.0 else 1.0
-        e2 = squared_error(W[c, 0, 0], un, ut, r[c, 0], r[c, 1], mu[c], size) * wnn * wnn
-        w2 = wn * wn + wt * wt
-        num += e2
-        den += w2
-        top = max(top, e2)
-        scale = max(scale, w2)
-    return relative(num, den), relative(top, scale)
+    overlap = 0.0
+    for c in range(u.shape[0]):
+        e2 = squared_error(wnn[c], u[c, 0], u[c, 1], r[c, 0], r[c, 1], mu[c], size[c])
+        if kind == IMPULSE:
+            num += e2
+            den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
+        else:
+            s = wnn[c] if wnn[c] > 0.0 else 1.0
+            e2 *= s * s
+            w2 = w[c, 0] * w[c, 0] + w[c, 1] * w[c, 1]
+            num += e2
+            den += w2
+            top = max(top, e2)
+            scale = max(scale, w2)
+        overlap = max(overlap, -u[c, 0])
+    error = relative(top, scale) if kind == VELOCITY_MAX else relative(num, den)
+    if bound > 0.0 and overlap > bound:
+        error = max(error, tol * overlap / bound)
+    return error
+
+
+@numba.njit(cache=True)
+def contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free):
+    """``local_contact_error`` of impulses r (nc, 2) with velocities v (n_dofs,)
+    = v_free + M̂⁻¹ H r; rows of H ``dof``, ``hn``, ``ht`` (nc, m), ``W`` (nc, 2, 2), ``gap_term``
+    (nc,), ``mu`` (nc,), ``v_free`` (n_dofs,) packed like v. 0 for no contact or r = 0 with every
+    contact open; inf for r = 0 with some contact closing; f at rounding level counts as 0."""
+    nc = dof.shape[0]
+    u = np.empty((nc, 2))
+    w = np.zeros((nc, 2))
+    size = np.empty(nc)
+    wnn = np.empty(nc)
+    for c in range(nc):
+        u[c, 0], u[c, 1], size[c] = contact_velocity(dof, hn, ht, gap_term[c], v, c)
+        if kind != IMPULSE:
+            un, ut, _ = contact_velocity(dof, hn, ht, 0.0, v, c)
+            fn, ft, _ = contact_velocity(dof, hn, ht, 0.0, v_free, c)
+            w[c, 0], w[c, 1] = un - fn, ut - ft
+        wnn[c] = W[c, 0, 0]
+    return local_contact_error(kind, tol, bound, wnn, u, w, r, mu, size)
+
+
+@numba.njit(cache=True)
+def natural_map_error(dof, hn, ht, W, gap_term, mu, r, v):
+    """‖f‖ / ‖r‖ (the ``"impulse"`` measure) of impulses r (nc, 2) with velocities v (n_dofs,);
+    arrays as in ``contact_error``."""
+    return contact_error(IMPULSE, 0.0, 0.0, dof, hn, ht, W, gap_term, mu, r, v, v)
+
+
+@numba.njit(cache=True)
+def velocity_error(dof, hn, ht, W, gap_term, mu, r, v, v_free):
+    """(``"velocity"``, ``"velocity_max"``) errors of impulses r (nc, 2) with velocities v
+    (n_dofs,): the packing's and the worst contact's; arrays as in ``contact_error``."""
+    return (contact_error(VELOCITY, 0.0, 0.0, dof, hn, ht, W, gap_term, mu, r, v, v_free),
+            contact_error(VELOCITY_MAX, 0.0, 0.0, dof, hn, ht, W, gap_term, mu, r, v, v_free))
+
+
+@dataclass(frozen=True)
+class Measure:
+    """What a contact solve's error is (module docstring): ``kind`` one of ``KINDS``;
+    ``penetration`` δ, a length (0: no penetration test)."""
+
+    kind: str = "impulse"
+    penetration: float = 0.0
+
+    def codes(self, problem, tol: float) -> tuple[int, float, float]:
+        """(kind, tol, bound) as the kernels take them, for ``problem`` (a ContactProblem): the
+        bound δ / (h θ) in velocity units, 0 without a penetration test."""
+        bound = self.penetration / problem.h_theta if self.penetration > 0.0 else 0.0
+        return KINDS[self.kind], tol, bound
+
+    def error(self, problem, tol: float, v: np.ndarray) -> float:
+        """The error of ``problem``'s impulses with velocities v (n_dofs,)."""
+        o = problem.compliance.order
+        return contact_error(*self.codes(problem, tol), problem.dof, problem.hn, problem.ht, problem.W,
+                             problem.gap_term, problem.mu, problem.impulse, v[o], problem.v_free[o])

@@ -71,7 +71,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
     for g in model.soft:
         g.use_indefinite(True)
     try:
-        return _active_set_newton(model, contacts, v_minus, h, theta, solver.tolerance, tol,
+        return _active_set_newton(model, contacts, v_minus, h, theta, solver, tol,
                                   min(ITERATIONS, max_iterations), stats)
     except StepFailure:
         stats["fallbacks"] += 1
@@ -81,7 +81,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
         return newton.solve_step(model, contacts, v_minus, h, theta, solver, tol, max_iterations, stats, misses_fail)
 
 
-def _active_set_newton(model, contacts, v_minus, h, theta, contact_tol, tol, max_iterations, stats):
+def _active_set_newton(model, contacts, v_minus, h, theta, solver, tol, max_iterations, stats):
     n = model.n_dofs
     diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
     soft_dofs = newton.contact_dofs(model, contacts)
@@ -135,8 +135,8 @@ def _active_set_newton(model, contacts, v_minus, h, theta, contact_tol, tol, max
         err = h * theta * float(np.max(np.abs(v_new - v)))
         v = v_new
         if err <= tol and np.all(r >= 0.0):
-            contact = problem.error(v)
-            if np.all(problem.normal_velocity(v)[r == 0.0] >= -tol / (h * theta)) and contact <= contact_tol:
+            contact = solver.measure.error(problem, solver.tolerance, v)
+            if np.all(problem.normal_velocity(v)[r == 0.0] >= -tol / (h * theta)) and contact <= solver.tolerance:
                 break
     else:
         raise StepFailure(f"the active-set Newton did not converge in {max_iterations} iterations")

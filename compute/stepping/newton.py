@@ -13,7 +13,7 @@ most tol (a position correction), or, before the contact solve of iteration k >=
 (v^k, r^k) of the current iterate and the last impulses has both true residuals small:
 
     h θ |M̂⁻¹ (R(v^k) - H r^k)|_∞ = h θ |v^k - v_free - M̂⁻¹ H r^k|_∞ <= tol     (impulse balance)
-    natural-map error of (Hᵀ v^k, r^k) <= the contact solver's tolerance      (Signorini–Coulomb)
+    error of (Hᵀ v^k, r^k) <= the contact solver's tolerance, in its measure   (Signorini–Coulomb)
 
 The second test is what ends a step whose contact problem converges slowly: each contact solve
 then stops after a sweep or two, on its own tolerance, and the velocities go on changing by
@@ -101,7 +101,7 @@ def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: fl
                     y, y_stamp = compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
                 balance = h * theta * float(np.max(np.abs(v - v_free - y)))
                 if balance <= tol:
-                    contact = problem.error(v)
+                    contact = solver.measure.error(problem, solver.tolerance, v)
                     if contact <= solver.tolerance:
                         report = SolveReport(v, report.iterations, contact)
                         break

@@ -8,13 +8,21 @@ import pytest
 from compute.solvers.block_gs import BlockGS
 from compute.solvers.interior_point import InteriorPoint
 from compute.solvers.nlgs import NLGS
-from compute.solvers.nlgs_block import NLGSThenBlock
-from compute.solvers.residual import natural_map_error
+from compute.solvers.nlgs_then import NLGSThen
+from compute.solvers.residual import Measure, natural_map_error
 from tests.solvers.lemke import frictional_lcp, lemke, solve_contact
 from tests.solvers.problems import dense_form, random_problem
 
-SOLVERS = {"nlgs": NLGS(1e-13, 200_000), "block": BlockGS(1e-13, 20_000), "nlgs_block": NLGSThenBlock(1e-13, 200_000),
-           "interior_point": InteriorPoint(1e-13, 200)}
+def solver_of(name, tol, measure=None):
+    """A fresh solver of kind ``name`` stopping at ``tol`` in ``measure`` (default: impulse)."""
+    m = measure or Measure()
+    return {"nlgs": lambda: NLGS(tol, 200_000, measure=m), "block": lambda: BlockGS(tol, 20_000, m),
+            "nlgs_block": lambda: NLGSThen.block(tol, 200_000, measure=m),
+            "nlgs_ip": lambda: NLGSThen.interior_point(tol, 200_000, measure=m),
+            "interior_point": lambda: InteriorPoint(tol, 200, m)}[name]()
+
+
+SOLVERS = {name: solver_of(name, 1e-13) for name in ("nlgs", "block", "nlgs_block", "nlgs_ip", "interior_point")}
 KINDS = ("rigid", "soft", "mixed")
 
 
@@ -131,7 +139,7 @@ def test_block_fallback_solves_problems_where_point_gauss_seidel_stalls(kind, se
     assert NLGS(1e-12, 20_000).solve(q).residual > 1e-6
     _, _, W, b = dense_form(p)
     expected = solve_contact(W, b, p.mu)
-    report = NLGSThenBlock(1e-12, 20_000).solve(p)
+    report = NLGSThen.block(1e-12, 20_000).solve(p)
     assert report.iterations < 1000 and report.residual <= 1e-12
     u, u_ref = W @ p.impulse.ravel() + b, W @ expected.ravel() + b
     np.testing.assert_allclose(u, u_ref, rtol=0, atol=1e-9 * max(np.abs(u_ref).max(), 1.0))
@@ -144,10 +152,11 @@ def test_auto_choice():
 
     from compute.solvers import for_scene
 
-    settings = SimpleNamespace(contact="auto", nlgs_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0)
+    settings = SimpleNamespace(contact="auto", nlgs_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0,
+                               contact_error="impulse", penetration_bound=0.0)
     assert isinstance(for_scene(settings, 1, 0), BlockGS)
-    assert isinstance(for_scene(settings, 1, 3), NLGSThenBlock) and isinstance(for_scene(settings, 72, 72), NLGSThenBlock)
-    assert isinstance(for_scene(settings, 2, 0), NLGSThenBlock)
+    assert isinstance(for_scene(settings, 1, 3).then, BlockGS) and isinstance(for_scene(settings, 72, 72).then, BlockGS)
+    assert isinstance(for_scene(settings, 2, 0).then, BlockGS)
     assert isinstance(for_scene(settings, 0, 100), NLGS)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)
 
@@ -198,3 +207,72 @@ def test_velocity_error_is_the_velocity_of_the_wrong_impulse():
         p.impulse[0, 0] = rn
         v = p.v_free + comp.diagonal * (hn[0, :2] * rn)
         assert p.velocity_error(v) == pytest.approx((expected, expected))
+
+
+def velocity_errors_by_hand(p, r):
+    """(packing, worst-contact) velocity errors of impulses r (nc, 2), and the largest predicted
+    overlap h θ max(-ũ_n), from the dense form: u = W r + b, the Coulomb cone projection written
+    out, e_c = W_nn f_c, w = W r (compute.solvers.residual's module docstring)."""
+    _, _, W, b = dense_form(p)
+    w = (W @ r.ravel()).reshape(-1, 2)
+    u = w + b.reshape(-1, 2)
+    e = np.zeros_like(u)
+    for c in range(len(p)):
+        wnn, mu = W[2 * c, 2 * c], p.mu[c]
+        x = wnn * r[c] - np.array([u[c, 0] + mu * abs(u[c, 1]), u[c, 1]])  # W_nn (r - ρ ū)
+        if x[0] >= 0 and abs(x[1]) <= mu * x[0]:
+            proj = x
+        elif mu * abs(x[1]) <= -x[0]:
+            proj = np.zeros(2)
+        else:
+            a = (x[0] + mu * abs(x[1])) / (1 + mu * mu)
+            proj = np.array([a, np.sign(x[1]) * mu * a])
+        e[c] = wnn * r[c] - proj
+    e_c, w_c = np.hypot(e[:, 0], e[:, 1]), np.hypot(w[:, 0], w[:, 1])
+    packing = np.linalg.norm(e_c) / np.linalg.norm(w_c) if e_c.max() > 0 else 0.0
+    worst = e_c.max() / w_c.max() if e_c.max() > 0 else 0.0
+    return packing, worst, p.h_theta * max(0.0, -u[:, 0].min())
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("kind", ("soft", "mixed"))
+def test_solvers_stop_on_the_velocity_measures(solver, kind):
+    """With ``velocity`` or ``velocity_max`` a solve that reports convergence holds that error,
+    recomputed by hand from the dense form, and reports it (within rounding)."""
+    for seed in range(10):
+        base = random_problem(np.random.default_rng(700 + seed), kind, 8)
+        for measure, which in (("velocity", 0), ("velocity_max", 1)):
+            p = copy_problem(base)
+            s = solver_of(solver, 1e-9, Measure(measure))
+            report = s.solve(p)
+            if report.residual > 1e-9:  # a Gauss–Seidel miss (test_solver_matches_lemke)
+                continue
+            by_hand = velocity_errors_by_hand(p, p.impulse)[which]
+            assert by_hand <= 1.01e-9
+            assert report.residual == pytest.approx(by_hand, rel=1e-6, abs=1e-11)
+
+
+def test_penetration_bound_holds_the_predicted_overlap():
+    """A loose tolerance with a penetration bound δ: the solve goes on until no contact's
+    predicted end-of-step overlap h θ (-ũ_n) exceeds δ, recomputed from the dense form; without
+    the bound the same loose solve leaves a larger overlap."""
+    for seed in range(5):
+        base = random_problem(np.random.default_rng(900 + seed), "mixed", 8)
+        base.h_theta = 0.5
+        base.gap_term[:] = -np.abs(base.gap_term) - 1.0  # every contact closing
+        loose = copy_problem(base)
+        NLGS(1e-1, 100_000).solve(loose)
+        _, _, loose_overlap = velocity_errors_by_hand(loose, loose.impulse)
+        assert loose_overlap > 0.0
+        delta = 1e-3 * loose_overlap
+        for solver in ("nlgs", "interior_point"):
+            p = copy_problem(base)
+            report = solver_of(solver, 1e-1, Measure("impulse", delta)).solve(p)
+            assert report.residual <= 1e-1
+            assert velocity_errors_by_hand(p, p.impulse)[2] <= delta * (1 + 1e-9)
+
+
+def copy_problem(p):
+    import copy
+
+    return copy.deepcopy(p)
