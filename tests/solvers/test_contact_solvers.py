@@ -276,3 +276,55 @@ def copy_problem(p):
     import copy
 
     return copy.deepcopy(p)
+
+
+def chain_problem(n: int = 60):
+    """n unit masses in a row, all moving towards a fixed wall and stopped by it (frictionless):
+    Gauss–Seidel carries the load one contact per sweep, so it needs of the order of n² sweeps,
+    while W (tridiagonal, positive definite) is easy for a global method."""
+    from compute.contact.compliance import Compliance
+    from compute.contact.problem import ContactProblem
+
+    comp = Compliance.build(n, [(np.arange(n), np.ones(n))])
+    m = 8
+    dof = np.full((n, m), -1)
+    hn = np.zeros((n, m))
+    dof[0, 0], hn[0, 0] = 0, 1.0  # the wall: u_n = v_0
+    for c in range(1, n):  # between c - 1 and c: u_n = v_c - v_{c-1}
+        dof[c, :2], hn[c, :2] = (c - 1, c), (-1.0, 1.0)
+    v_free = -1.0 - 0.5 * np.sin(np.arange(n))
+    return ContactProblem.of_rows(dof, hn, np.zeros_like(hn), comp, v_free, np.zeros(n), np.zeros(n),
+                                  np.zeros((n, 2)))
+
+
+def test_nlgs_hands_a_slow_solve_to_the_interior_point():
+    """On the chain, NLGS with a projected-sweeps limit stops early (above the tolerance, well
+    before its budget); nlgs_ip then reaches the tolerance (error recomputed from the dense
+    form) in far fewer iterations than NLGS alone needs."""
+    from compute.solvers.nlgs_then import PROJECTED_SWEEPS, STALL_WINDOW
+
+    alone = chain_problem()
+    plain = NLGS(1e-10, 1_000_000).solve(alone)
+    assert plain.residual <= 1e-10 and plain.iterations > 20 * PROJECTED_SWEEPS
+    early = NLGS(1e-10, 1_000_000, stall_window=STALL_WINDOW, projected_limit=PROJECTED_SWEEPS).solve(chain_problem())
+    assert early.residual > 1e-10 and early.iterations < plain.iterations / 10
+    p = chain_problem()
+    report = NLGSThen.interior_point(1e-10, 1_000_000).solve(p)
+    assert report.residual <= 1e-10 and error_of(p, p.impulse) <= 1e-10
+    assert report.iterations < plain.iterations / 10
+
+
+def test_nlgs_then_keeps_the_better_iterate():
+    """A fallback that does worse than NLGS's iterate (an interior point allowed one iteration)
+    is discarded: NLGSThen returns NLGS's impulses and error, and with ``resume`` NLGS goes on
+    from them to the tolerance."""
+    from compute.solvers.nlgs_then import STALL_WINDOW
+
+    first = NLGS(1e-10, 1_000_000, stall_window=STALL_WINDOW, projected_limit=1000)
+    p = chain_problem()
+    kept = NLGSThen(first, InteriorPoint(1e-10, 1)).solve(p)
+    q = chain_problem()
+    alone = first.solve(q)
+    assert kept.residual == pytest.approx(alone.residual) and np.array_equal(p.impulse, q.impulse)
+    resumed = NLGSThen(first, InteriorPoint(1e-10, 1), resume=True).solve(chain_problem())
+    assert resumed.residual <= 1e-10
