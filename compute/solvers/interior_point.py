@@ -93,7 +93,7 @@ def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, codes: tuple, max_iter
     nc = len(W)
     if nc == 0:
         return np.zeros((0, 2)), 0, 0.0
-    wnn = W.data[W.indptr[:-1] + _diagonal_position(W.indptr, W.indices), 0, 0]
+    wnn = W.data[W.indptr[:-1] + diagonal_position(W.indptr, W.indices), 0, 0]
     rho = np.where(wnn > 0.0, 1.0 / np.where(wnn > 0.0, wnn, 1.0), 1.0)
     var0 = _variables(mu)
     vals, rows, cols = _lcp_entries(W.indptr, W.indices, W.data, var0, mu, rho)
@@ -102,34 +102,59 @@ def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, codes: tuple, max_iter
     b = _lcp_offset(q, var0)
     m = b.size
     reg = REGULARISATION * max(float(np.abs(M.diagonal()).max()), 1.0)
-    red0, colptr, rowind, pos = _reduced_pattern(W.indptr, W.indices, var0)
+    red0, colptr, rowind, pos = reduced_pattern(W.indptr, W.indices, var0)
     base = _reduced_base(W.indptr, W.indices, W.data, red0, rho, rowind.size)
     scale = max(float(np.sqrt(np.mean(q**2))), np.finfo(float).tiny)
-    z = np.full(m, scale)
-    w = np.full(m, scale)
     best, best_error = np.zeros((nc, 2)), np.inf
     tried = previous = None  # the active set whose crossover last failed; the last iterate's
-    for it in range(max_iterations + 1):
+
+    def stop(z, w, last):
+        """The error of the iterate's impulses, kept if the best; a crossover once the set of
+        positive unknowns repeats (module docstring)."""
+        nonlocal best, best_error, tried, previous
         r = _impulses(z, var0, rho)
-        error = _error(codes, wnn, W.times(r) + q, r, mu, q)
+        error = solution_error(codes, wnn, W.times(r) + q, r, mu, q)
         if error < best_error:
             best, best_error = r, error
-        if best_error <= tol or it == max_iterations:
-            break
+        if best_error <= tol or last:
+            return True
         active = z > w
         if previous is not None and np.array_equal(active, previous) and not np.array_equal(active, tried):
             rx, ex = _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho, codes)
             if ex < best_error:
                 best, best_error = rx, ex
                 if best_error <= tol:
-                    break
+                    return True
             tried = active
         previous = active
-        F = M @ z + b
-        d = w / z + reg
+        return False
+
+    def newton_system(d):
+        """The solve of (M + diag(d)) Δz = g through the reduced system (module docstring)."""
         lu = spla.splu(sp.csc_matrix((_reduced_values(base, red0, pos, d, var0, mu), rowind, colptr),
                                      shape=(red0[-1], red0[-1])), permc_spec="COLAMD")
-        newton = lambda g: _expand(lu.solve(_reduce(g, var0, red0, d, mu)), g, var0, red0, d, mu)  # noqa: E731
+        return lambda g: _expand(lu.solve(_reduce(g, var0, red0, d, mu)), g, var0, red0, d, mu)
+
+    _, _, it = predictor_corrector(lambda z: M @ z + b, newton_system, stop, np.full(m, scale), np.full(m, scale),
+                                   max_iterations, reg)
+    return best, it, best_error
+
+
+def predictor_corrector(residual, newton_system, stop, z: np.ndarray, w: np.ndarray, max_iterations: int,
+                        reg: float = 0.0):
+    """Mehrotra's predictor–corrector on the LCP w = M z + b, 0 ≤ z ⊥ w ≥ 0, from z, w > 0 (m,)
+    (infeasible: one step length for z and w, so that M z + b - w shrinks by 1 - α per
+    iteration). ``residual(z)`` is M z + b; ``newton_system(d)`` factorises M + diag(d) (d (m,)
+    = w / z + ``reg``) and returns its solve, g -> Δz; ``stop(z, w, last)`` is the caller's test
+    at every iterate, ``last`` true once ``max_iterations`` are spent: True stops. Returns
+    (z, w, iterations)."""
+    m = z.size
+    for it in range(max_iterations + 1):
+        if stop(z, w, it == max_iterations) or it == max_iterations:
+            break
+        F = residual(z)
+        d = w / z + reg
+        newton = newton_system(d)
         gap = float(z @ w) / m
         dz = newton(-F)  # predictor (affine scaling): complementarity target 0
         dw = -w - d * dz
@@ -146,7 +171,7 @@ def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, codes: tuple, max_iter
             a = min(_to_boundary(z, dz, STEP_TO_BOUNDARY), _to_boundary(w, dw, STEP_TO_BOUNDARY))
         z = z + a * dz
         w = w + a * dw
-    return best, it, best_error
+    return z, w, it
 
 
 def _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho, codes):
@@ -168,7 +193,7 @@ def _crossover(M, b, active, reg, W, q, wnn, mu, var0, rho, codes):
                 z[P] -= lu.solve((M @ z + b)[P])
         w = M @ z + b
         r = _impulses(np.maximum(z, 0.0), var0, rho)
-        error = _error(codes, wnn, W.times(r) + q, r, mu, q)
+        error = solution_error(codes, wnn, W.times(r) + q, r, mu, q)
         if error < best_error:
             best, best_error = r, error
         on = np.zeros(b.size, np.bool_)
@@ -189,7 +214,7 @@ def _to_boundary(x: np.ndarray, dx: np.ndarray, eta: float) -> float:
 
 
 @numba.njit(cache=True)
-def _diagonal_position(indptr, indices):
+def diagonal_position(indptr, indices):
     """Position of block (c, c) within row c of a block-CSR (nc,)."""
     nc = indptr.size - 1
     out = np.zeros(nc, np.int64)
@@ -282,7 +307,7 @@ def _impulses(z, var0, rho):
     return r
 
 
-def _error(codes, wnn, u, r, mu, q):
+def solution_error(codes, wnn, u, r, mu, q):
     """The error (compute.solvers.residual) of impulses r (nc, 2) from local velocities u (nc, 2)
     = W r + q."""
     size = np.abs(q).sum(axis=1) + np.abs(u).sum(axis=1)
@@ -290,7 +315,7 @@ def _error(codes, wnn, u, r, mu, q):
 
 
 @numba.njit(cache=True)
-def _reduced_pattern(indptr, indices, var0):
+def reduced_pattern(indptr, indices, var0):
     """The reduced Newton system's unknowns and CSC pattern: red0 (nc + 1,) (contact c owns
     red0[c]:red0[c + 1], (r_n, r_t) or (r_n,)), colptr, rowind (rows sorted), and pos (nc, 3) the
     positions of its diagonal block's entries (n, n), (t, n), (t, t) (-1: none)."""
@@ -331,7 +356,7 @@ def _reduced_pattern(indptr, indices, var0):
 
 @numba.njit(cache=True)
 def _reduced_base(indptr, indices, data, red0, rho, nnz):
-    """The W̃ = W ρ part of the reduced matrix in the pattern of ``_reduced_pattern``: row i of
+    """The W̃ = W ρ part of the reduced matrix in the pattern of ``reduced_pattern``: row i of
     contact c, column j of contact d: (W[c, d] ρ_d e_j)_i, e_n = (1, 0), e_t = (0, 1)."""
     nc = indptr.size - 1
     vals = np.empty(nnz)
