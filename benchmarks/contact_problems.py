@@ -93,13 +93,14 @@ def export(a) -> None:
 
 def solver_of(name: str, tol: float):
     from compute.solvers.block_gs import BlockGS
+    from compute.solvers.cone_point import ConePoint
     from compute.solvers.interior_point import InteriorPoint
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
 
     return {"nlgs": lambda: NLGS(tol, 200_000), "block": lambda: BlockGS(tol, 50_000),
             "nlgs_block": lambda: NLGSThen.block(tol, 200_000), "interior_point": lambda: InteriorPoint(tol),
-            "nlgs_ip": lambda: NLGSThen.interior_point(tol, 200_000)}[name]()
+            "nlgs_ip": lambda: NLGSThen.interior_point(tol, 200_000), "cone_point": lambda: ConePoint(tol)}[name]()
 
 
 def compare(a) -> None:

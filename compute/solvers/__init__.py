@@ -18,6 +18,10 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
   its iterations too. It does not yet converge on every frictional rigid packing, and once per
   Newton iteration it costs more than warm-started Gauss–Seidel, so ``auto`` does not choose it
   (benchmarks/results/contact_problems.md);
+- ``"cone_point"``: :class:`~compute.solvers.cone_point.ConePoint`, De Saxcé's friction shift as
+  a fixed point, each step a monotone LCP over the Coulomb cones solved by the same interior
+  point: converges where ``interior_point`` stalls, on jammed frictional rigid packings;
+  ``nlgs_max_sweeps`` bounds its interior-point iterations too;
 - ``"auto"`` (default): ``nlgs`` without soft bodies (every block would be one contact: the same
   iteration, dearer); ``block`` for a scene whose only moving bodies are one soft body and the
   walls; ``nlgs_block`` for soft bodies among other bodies. Why: on one soft body the point
@@ -64,6 +68,7 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     with ``n_soft`` soft bodies, ``n_rigid`` movable rigid disks and mean diameter ``diameter``
     (the unit of ``penetration_bound``)."""
     from compute.solvers.block_gs import BlockGS
+    from compute.solvers.cone_point import ConePoint
     from compute.solvers.interior_point import InteriorPoint
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
@@ -76,6 +81,8 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
         kind = "nlgs" if n_soft == 0 else "block" if n_rigid == 0 and n_soft == 1 else "nlgs_block"
     if kind == "interior_point":
         return InteriorPoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
+    if kind == "cone_point":
+        return ConePoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
     if kind == "block":
         return BlockGS(tol, sweeps, measure)
     if kind == "nlgs_block":
