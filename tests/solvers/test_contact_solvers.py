@@ -185,7 +185,7 @@ def test_shift_fixed_point_is_a_coulomb_solution():
     assert report.residual <= 1e-13 and error_of(p, p.impulse) <= 1e-13
     np.testing.assert_allclose(p.impulse, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
     u = W @ p.impulse.ravel() + b
-    closed = p.impulse[:, 0] > 0
+    closed = p.impulse[:, 0] > 1e-8 * p.impulse[:, 0].max()  # the interior point leaves open contacts at ~1e-17
     np.testing.assert_allclose(u[0::2][closed], 0.0, atol=1e-10 * np.abs(b).max())  # ũ_n + μ|u_t| ⊥ r with u_n = 0
 
 
