@@ -21,22 +21,29 @@ velocities along the dual cone's edges. ρ_c = 1 / W_nn,c scales each contact as
 interior point, here on both sides (Jacobi scaling of W, M's diagonal about 1 + μ²) so that M
 stays symmetric. Two unknowns per frictional contact: the Newton matrix M + diag(w / z) has
 the pattern of W (2x2 blocks), assembled per contact (numba) and factorised by sparse LU
-(symmetric mode: M + diag(w / z) is positive definite), half the unknowns of the Stewart–Trinkle system before its reduction and the same
-count after it. The predictor–corrector is
+(symmetric mode: M + diag(w / z) is positive definite), half the unknowns of the
+Stewart–Trinkle system before its reduction and the same count after it. The predictor–corrector is
 :func:`compute.solvers.interior_point.predictor_corrector`, from a cold, centred start
 z = w = rms(b) at every outer step.
 
 Outer iteration: a solution of the LCP with s = μ |u_t| is a Coulomb solution, so
-s ← (1 − θ) s + θ μ |u_t(s)| (``damping`` θ; 0.5 settled the 1500-disk packing in fewer steps
-than 1 in the experiments that led here). s starts from the warm-start impulses' velocities
-(zero for a cold start). Each LCP is solved until its own (shifted) natural-map error is
-``INNER`` times the tolerance; the true error of the measure is evaluated at every
-interior-point iterate, and the solve stops as soon as it is at most the tolerance. The best
-impulses found are returned with their error.
+s ← (1 − θ) s + θ μ |u_t(s)| (``damping`` θ, 1 by default: on rj200 it divides the error by 5–10
+per step where θ = 0.5 divides it by 2). The first s is μ |u_t| of the warm-start impulses'
+velocities, for zero impulses of the free velocity: with s = 0 a cone LCP can have no solution
+(a self-stress inside the cones whose cost (q + s e_n)ᵀ r is negative, seen on the rank-deficient
+test problems with overlapping gaps), and its interior point then runs the impulses to infinity,
+where the relative error ‖f‖ / ‖r‖ is fooled. For the same reason each LCP carries a proximal
+term ε/2 |r − r̄|² weighted by W_nn (ε = ``PROXIMAL``, r̄ the last outer step's impulses):
+strictly monotone, bounded, and exact at a fixed point (r = r̄). Each LCP is solved until its own
+(shifted, proximal) natural-map error is ``INNER`` times the tolerance; the true error of the
+measure is evaluated at every interior-point iterate, and the solve stops as soon as it is at
+most the tolerance.
 
-What it does not guarantee: the fixed point converges only linearly, and not at all where
-μ |u_t| depends strongly on s (no contraction); it is the cone LCP, not the fixed point, that is
-robust.
+Polish: the fixed point converges linearly and stalls on jammed packings (rj200: near 3e-6, with
+contacts flickering between stick and slip; benchmarks/results/contact_problems.md). Once an
+outer step does not halve the error (``STALL``), at most ``polish`` Levenberg–Marquardt steps on
+the Alart–Curnier function take over from the best impulses (``levenberg_marquardt``). The best
+impulses found are returned with their error.
 """
 
 from __future__ import annotations
