@@ -91,7 +91,9 @@ def export(a) -> None:
         raise SystemExit("the run ended before the requested step or stage")
 
 
-def solver_of(name: str, tol: float):
+def solver_of(name: str, tol: float, soft: bool):
+    """Solver ``name`` to ``tol`` with generous budgets; ``soft``: the problem has soft bodies
+    (nlgs_ip's fallback depends on it, as in a scene)."""
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.cone_point import ConePoint
     from compute.solvers.interior_point import InteriorPoint
@@ -100,7 +102,7 @@ def solver_of(name: str, tol: float):
 
     return {"nlgs": lambda: NLGS(tol, 200_000), "block": lambda: BlockGS(tol, 50_000),
             "nlgs_block": lambda: NLGSThen.block(tol, 200_000), "interior_point": lambda: InteriorPoint(tol),
-            "nlgs_ip": lambda: NLGSThen.interior_point(tol, 200_000), "cone_point": lambda: ConePoint(tol)}[name]()
+            "nlgs_ip": lambda: NLGSThen.interior_point(tol, 200_000, soft=soft), "cone_point": lambda: ConePoint(tol)}[name]()
 
 
 def compare(a) -> None:
@@ -111,7 +113,7 @@ def compare(a) -> None:
         for name in a.solvers:
             for tol in a.tolerances:
                 p = copy.deepcopy(base)
-                solver = solver_of(name, tol)
+                solver = solver_of(name, tol, len(base.compliance.start) > 1)
                 solver.solve(copy.deepcopy(base))  # compile, warm caches
                 t = time.perf_counter()
                 rep = solver.solve(p)

@@ -88,5 +88,5 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     if kind == "nlgs_block":
         return NLGSThen.block(tol, sweeps, settings.relaxation, measure)
     if kind == "nlgs_ip":
-        return NLGSThen.interior_point(tol, sweeps, settings.relaxation, measure)
+        return NLGSThen.interior_point(tol, sweeps, settings.relaxation, measure, soft=n_soft > 0)
     return NLGS(tol, sweeps, settings.relaxation, measure=measure)

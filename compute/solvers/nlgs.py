@@ -18,7 +18,8 @@ Stall detection (``stall_window`` > 0, for a caller with a fallback): every ``st
 sweeps the error is evaluated, and the solve stops early, unconverged, when it is not below the
 smallest error of the earlier checks (an iteration that oscillates), or, with ``projected_limit``
 > 0, when the contraction of the last window, kept up, would need more than that many further
-sweeps to reach the tolerance (an iteration too slow for the caller's fallback to wait for). Where this happens: frictional point Gauss–Seidel in a compacting soft
+sweeps, or more than its budget has left, to reach the tolerance (an iteration too slow for the
+caller's fallback to wait for, or that would miss). Where this happens: frictional point Gauss–Seidel in a compacting soft
 mixture oscillates for thousands of sweeps on contacts of nearly singular soft corners (W_tt
 much larger than W_nn, with strong n–t coupling), while without friction it converges
 (benchmarks/results/design_figures.md).
@@ -127,8 +128,8 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, star
             if stall_check:
                 if error >= best:
                     return sweep, error
-                if projected_limit > 0 and last < np.inf and \
-                        np.log(tol / error) / np.log(error / last) * stall_window > projected_limit:
+                if projected_limit > 0 and last < np.inf and np.log(tol / error) / np.log(error / last) \
+                        * stall_window > min(projected_limit, max_sweeps - sweep):
                     return sweep, error  # converging, but too slowly to reach tol within the limit
                 best = error
                 last = error

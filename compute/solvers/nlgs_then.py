@@ -8,12 +8,20 @@ takes over from its iterate:
   mixture NLGS's frictional iteration can oscillate at an error of 1e-3–1e-2 on contacts of
   nearly singular soft corners, where block Gauss–Seidel, which solves the contacts of each soft
   body together, converges (benchmarks/results/design_figures.md);
-- the interior point (:mod:`compute.solvers.interior_point`, ``nlgs_ip``): in a large or
-  stiff packing NLGS converges, but at a rate that needs thousands of sweeps, while the interior
-  point's iterations do not grow with the packing (benchmarks/results/contact_problems.md). NLGS
-  hands over when its last ``STALL_WINDOW`` sweeps, kept up, would need more than
-  ``PROJECTED_SWEEPS`` further sweeps; the interior point's cold start then costs about as much
-  as that many sweeps on the packings measured.
+- an interior point (``nlgs_ip``): in a large or stiff packing NLGS converges, but at a rate
+  that needs thousands of sweeps, while an interior point's iterations do not grow with the
+  packing (benchmarks/results/contact_problems.md). NLGS hands over when its last
+  ``STALL_WINDOW`` sweeps, kept up, would not reach the tolerance within its budget: the
+  fallback is paid only where NLGS would miss (on a 1500-disk rigid packing one fallback costs as
+  much as several thousand sweeps, on a 200-disk one as a few hundred: a fixed threshold in
+  sweeps cannot be right at both sizes).
+  With soft bodies the fallback is the Stewart–Trinkle interior point
+  (:mod:`compute.solvers.interior_point`, 16–22 iterations where it converges); without, the
+  cone fixed point (:mod:`compute.solvers.cone_point`), which converges on jammed frictional
+  rigid packings where the former stalls (80–106 iterations there), and is 4 times slower than
+  it on a soft mixture. Both start cold: the cone fixed point's first shift from a stalled NLGS
+  iterate left it at 7e-6 on rj200, against 3e-7 from zero impulses (the Stewart–Trinkle
+  interior point does not use a warm start).
 
 The answer kept is the one with the smaller error: the fallback may do worse than NLGS's iterate
 (the interior point on a jammed frictional rigid packing). Where the interior point misses, NLGS
@@ -27,13 +35,14 @@ from dataclasses import dataclass, replace
 
 from compute.solvers import SolveReport
 from compute.solvers.block_gs import BlockGS
+from compute.solvers.cone_point import ConePoint
 from compute.solvers.interior_point import InteriorPoint
 from compute.solvers.nlgs import NLGS
 from compute.solvers.residual import Measure
 
 STALL_WINDOW = 50  # sweeps between NLGS's stall checks
-PROJECTED_SWEEPS = 1000  # nlgs_ip: NLGS hands over when the tolerance is projected further away than this
 FALLBACK_IP_ITERATIONS = 40  # nlgs_ip: where the interior point converges it needs 12-22 iterations
+FALLBACK_CONE_ITERATIONS = 150  # and the cone fixed point 80-106 on the rigid packings measured
 
 
 @dataclass(frozen=True)
@@ -44,6 +53,7 @@ class NLGSThen:
     first: NLGS
     then: object
     resume: bool = False  # NLGS goes on (without stall detection) from the better iterate if ``then`` misses
+    cold: bool = False  # ``then`` starts from zero impulses, not from NLGS's iterate
 
     @property
     def tolerance(self) -> float:
@@ -61,24 +71,31 @@ class NLGSThen:
 
     @classmethod
     def interior_point(cls, tolerance: float, max_sweeps: int, relaxation: float = 1.0,
-                       measure: Measure = Measure()):
-        """``nlgs_ip``: NLGS until it oscillates or is projected too slow, then the interior point,
-        then NLGS again if that missed."""
-        return cls(NLGS(tolerance, max_sweeps, relaxation, STALL_WINDOW, measure, PROJECTED_SWEEPS),
-                   InteriorPoint(tolerance, FALLBACK_IP_ITERATIONS, measure), resume=True)
+                       measure: Measure = Measure(), soft: bool = True):
+        """``nlgs_ip``: NLGS until it oscillates or is projected too slow, then an interior point
+        (with ``soft`` bodies the Stewart–Trinkle one, else the cone fixed point), then NLGS
+        again if that missed."""
+        then = InteriorPoint(tolerance, FALLBACK_IP_ITERATIONS, measure) if soft else \
+            (InteriorPoint(tolerance, FALLBACK_IP_ITERATIONS, measure), ConePoint(tolerance, FALLBACK_CONE_ITERATIONS, measure))
+        return cls(NLGS(tolerance, max_sweeps, relaxation, STALL_WINDOW, measure, max_sweeps), then,
+                   resume=True, cold=True)
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
         first = self.first.solve(problem)
         if first.residual <= self.tolerance or first.iterations >= self.first.max_sweeps:
             return first
-        kept = problem.impulse.copy()
-        then = self.then.solve(problem)
-        iterations = first.iterations + then.iterations
-        best = then
-        if then.residual > first.residual:
-            problem.impulse[:] = kept
-            best = first
+        best, kept, iterations = first, problem.impulse.copy(), first.iterations
+        for fallback in (self.then if isinstance(self.then, tuple) else (self.then,)):
+            if self.cold:
+                problem.impulse[:] = 0.0
+            then = fallback.solve(problem)
+            iterations += then.iterations
+            if then.residual <= best.residual:
+                best, kept = then, problem.impulse.copy()
+            if best.residual <= self.tolerance:
+                break
+        problem.impulse[:] = kept
         if self.resume and best.residual > self.tolerance:
             rest = replace(self.first, max_sweeps=self.first.max_sweeps - first.iterations, stall_window=0)
             best = rest.solve(problem)

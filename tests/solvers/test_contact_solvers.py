@@ -394,7 +394,9 @@ def test_nlgs_hands_a_slow_solve_to_the_interior_point():
     """On the chain, NLGS with a projected-sweeps limit stops early (above the tolerance, well
     before its budget); nlgs_ip then reaches the tolerance (error recomputed from the dense
     form) in far fewer iterations than NLGS alone needs."""
-    from compute.solvers.nlgs_then import PROJECTED_SWEEPS, STALL_WINDOW
+    from compute.solvers.nlgs_then import STALL_WINDOW
+
+    PROJECTED_SWEEPS = 1000
 
     alone = chain_problem()
     plain = NLGS(1e-10, 1_000_000).solve(alone)
@@ -402,7 +404,7 @@ def test_nlgs_hands_a_slow_solve_to_the_interior_point():
     early = NLGS(1e-10, 1_000_000, stall_window=STALL_WINDOW, projected_limit=PROJECTED_SWEEPS).solve(chain_problem())
     assert early.residual > 1e-10 and early.iterations < plain.iterations / 10
     p = chain_problem()
-    report = NLGSThen.interior_point(1e-10, 1_000_000).solve(p)
+    report = NLGSThen.interior_point(1e-10, 5 * PROJECTED_SWEEPS).solve(p)  # a budget NLGS would miss
     assert report.residual <= 1e-10 and error_of(p, p.impulse) <= 1e-10
     assert report.iterations < plain.iterations / 10
 
