@@ -154,8 +154,8 @@ SOLVER = (
     Key("skin", "float", "broad-phase skin, in mean diameters", low=0.0, high=10.0, open_low=True),
     _tolerance("newton_tolerance", "Newton loop: position correction, in mean diameters", low=1e-15, default=1e-8),
     Key("newton_max_iterations", "int", "Newton iterations per step attempt", low=1, high=1000, default=20),
-    Key("contact", "str", "contact solver (auto: nlgs without soft bodies, block for one soft body alone, "
-        "else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py; nlgs_ip: NLGS, "
+    Key("contact", "str", "contact solver (auto: without soft bodies nlgs_ip up to 500 movable disks, nlgs above; "
+        "block for one soft body alone, else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py; nlgs_ip: NLGS, "
         "the interior point where NLGS stalls, compute/solvers/nlgs_then.py; cone_point: De Saxcé shift fixed point "
         "over monotone cone LCPs, for jammed frictional rigid packings, compute/solvers/cone_point.py)",
         options=("auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip", "cone_point"), default="auto"),

@@ -11,26 +11,32 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
 - ``"nlgs_block"``: :meth:`compute.solvers.nlgs_then.NLGSThen.block`, NLGS until it stalls, then
   block Gauss–Seidel;
 - ``"nlgs_ip"``: :meth:`compute.solvers.nlgs_then.NLGSThen.interior_point`, NLGS until it stalls
-  or is projected to need many sweeps, then the interior point;
+  or would miss its tolerance within its sweeps, then an interior point, then NLGS again;
 - ``"interior_point"``: :class:`~compute.solvers.interior_point.InteriorPoint`, all contacts of
   the packing solved together (Mehrotra predictor–corrector on the problem's LCP form, sparse
   LU), a number of iterations that does not grow with the packing; ``nlgs_max_sweeps`` bounds
-  its iterations too. It does not yet converge on every frictional rigid packing, and once per
-  Newton iteration it costs more than warm-started Gauss–Seidel, so ``auto`` does not choose it
-  (benchmarks/results/contact_problems.md);
+  its iterations too. It does not converge on jammed frictional rigid packings, and once per
+  Newton iteration it costs more than warm-started Gauss–Seidel, so ``auto`` uses it only as
+  ``nlgs_ip``'s fallback (benchmarks/results/contact_problems.md);
 - ``"cone_point"``: :class:`~compute.solvers.cone_point.ConePoint`, De Saxcé's friction shift as
   a fixed point, each step a monotone LCP over the Coulomb cones solved by the same interior
   point: converges where ``interior_point`` stalls, on jammed frictional rigid packings;
   ``nlgs_max_sweeps`` bounds its interior-point iterations too;
-- ``"auto"`` (default): ``nlgs`` without soft bodies (every block would be one contact: the same
-  iteration, dearer); ``block`` for a scene whose only moving bodies are one soft body and the
-  walls; ``nlgs_block`` for soft bodies among other bodies. Why: on one soft body the point
-  Gauss–Seidel contracts slowly, the body's contacts being coupled through its compliance,
-  while the block is one Newton solve. In soft mixtures the slow coupling is between bodies,
-  through the contact network, where blocks take as many sweeps as points at a higher cost per
-  sweep; but while a mixture compacts, ``nlgs`` can stall where ``block`` converges
-  (:mod:`compute.solvers.nlgs_then`), hence ``nlgs_block``. Figures:
-  benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
+- ``"auto"`` (default): without soft bodies, ``nlgs_ip`` up to ``AUTO_FALLBACK_BODIES`` movable
+  rigid bodies and ``nlgs`` above (a block would be one contact: the same iteration, dearer);
+  ``block`` for a scene whose only moving bodies are one soft body and the walls; ``nlgs_block``
+  for soft bodies among other bodies. Why: near jamming, frictional rigid packings pose contact
+  problems on which NLGS needs tens of thousands of sweeps, so its solves end above tolerance at
+  their sweep limit; with the interior-point fallback the rigid_jamming study's default runs end
+  COMPLETE in the same time, but the fallback's sparse factorisations grow faster than a sweep,
+  and at 500 disks it already costs 1.5 times NLGS's time (still COMPLETE), at 1500 disks 2.8
+  times (and 43 steps still above tolerance). On one soft body the point Gauss–Seidel contracts
+  slowly, the body's contacts being coupled through its compliance, while the block is one
+  Newton solve. In soft mixtures the slow coupling is between bodies, through the contact
+  network, where blocks take as many sweeps as points at a higher cost per sweep; but while a
+  mixture compacts, ``nlgs`` can stall where ``block`` converges (:mod:`compute.solvers.nlgs_then`),
+  hence ``nlgs_block``; ``nlgs_ip`` there took twice as long at tolerance 1e-4 in the 144-disk
+  program. Figures: benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
 
 All stop on the error of :mod:`compute.solvers.residual` that the scene's
 ``solver.contact_error`` names (their ``measure``), with its optional penetration bound, and
@@ -45,6 +51,7 @@ import numpy as np
 
 
 MAX_INTERIOR_POINT_ITERATIONS = 200  # an interior point that needs more has stalled
+AUTO_FALLBACK_BODIES = 500  # auto: rigid scenes up to this many movable bodies get nlgs_ip (module docstring)
 
 
 @dataclass
@@ -78,7 +85,10 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     tol, sweeps = settings.nlgs_tolerance, settings.nlgs_max_sweeps
     kind = settings.contact
     if kind == "auto":
-        kind = "nlgs" if n_soft == 0 else "block" if n_rigid == 0 and n_soft == 1 else "nlgs_block"
+        if n_soft == 0:
+            kind = "nlgs_ip" if n_rigid <= AUTO_FALLBACK_BODIES else "nlgs"
+        else:
+            kind = "block" if n_rigid == 0 and n_soft == 1 else "nlgs_block"
     if kind == "interior_point":
         return InteriorPoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
     if kind == "cone_point":

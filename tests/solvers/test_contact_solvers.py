@@ -239,8 +239,9 @@ def test_block_fallback_solves_problems_where_point_gauss_seidel_stalls(kind, se
 
 
 def test_auto_choice():
-    """nlgs without soft bodies, block for one soft body alone in its walls, nlgs_block for soft
-    bodies among others (compute.solvers docstring)."""
+    """nlgs_ip (cone fixed point as its rigid fallback) for a small rigid packing, nlgs for a
+    large one, block for one soft body alone in its walls, nlgs_block for soft bodies among others
+    (compute.solvers docstring)."""
     from types import SimpleNamespace
 
     from compute.solvers import for_scene
@@ -250,7 +251,8 @@ def test_auto_choice():
     assert isinstance(for_scene(settings, 1, 0), BlockGS)
     assert isinstance(for_scene(settings, 1, 3).then, BlockGS) and isinstance(for_scene(settings, 72, 72).then, BlockGS)
     assert isinstance(for_scene(settings, 2, 0).then, BlockGS)
-    assert isinstance(for_scene(settings, 0, 100), NLGS)
+    assert isinstance(for_scene(settings, 0, 100).then[1], ConePoint)
+    assert isinstance(for_scene(settings, 0, 1500), NLGS)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)
 
 
