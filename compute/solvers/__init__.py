@@ -28,15 +28,15 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
   for soft bodies among other bodies. Why: near jamming, frictional rigid packings pose contact
   problems on which NLGS needs tens of thousands of sweeps, so its solves end above tolerance at
   their sweep limit; with the interior-point fallback the rigid_jamming study's default runs end
-  COMPLETE in the same time, but the fallback's sparse factorisations grow faster than a sweep,
-  and at 500 disks it already costs 1.5 times NLGS's time (still COMPLETE), at 1500 disks 2.8
-  times (and 43 steps still above tolerance). On one soft body the point Gauss–Seidel contracts
+  COMPLETE in less time, but the fallback's sparse factorisations grow faster than a sweep:
+  at 500 disks the run costs more than with NLGS (and ends COMPLETE where NLGS does not), at
+  1500 disks several times more (and still leaves steps above tolerance). On one soft body the point Gauss–Seidel contracts
   slowly, the body's contacts being coupled through its compliance, while the block is one
   Newton solve. In soft mixtures the slow coupling is between bodies, through the contact
   network, where blocks take as many sweeps as points at a higher cost per sweep; but while a
   mixture compacts, ``nlgs`` can stall where ``block`` converges (:mod:`compute.solvers.nlgs_then`),
-  hence ``nlgs_block``; ``nlgs_ip`` there took twice as long at tolerance 1e-4 in the 144-disk
-  program. Figures: benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
+  hence ``nlgs_block``; ``nlgs_ip`` there is slower at the default tolerance (a cold interior
+  point per fallback, at any Newton iteration) and pays off only at tight ones. Figures: benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
 
 All stop on the error of :mod:`compute.solvers.residual` that the scene's
 ``solver.contact_error`` names (their ``measure``), with its optional penetration bound, and

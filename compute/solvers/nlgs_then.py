@@ -9,24 +9,21 @@ takes over from its iterate:
   nearly singular soft corners, where block Gauss–Seidel, which solves the contacts of each soft
   body together, converges (benchmarks/results/design_figures.md);
 - an interior point (``nlgs_ip``): in a large or stiff packing NLGS converges, but at a rate
-  that needs thousands of sweeps, while an interior point's iterations do not grow with the
-  packing (benchmarks/results/contact_problems.md). NLGS hands over when its last
-  ``STALL_WINDOW`` sweeps, kept up, would not reach the tolerance within its budget: the
-  fallback is paid only where NLGS would miss (on a 1500-disk rigid packing one fallback costs as
-  much as several thousand sweeps, on a 200-disk one as a few hundred: a fixed threshold in
-  sweeps cannot be right at both sizes).
-  With soft bodies the fallback is the Stewart–Trinkle interior point
-  (:mod:`compute.solvers.interior_point`, 16–22 iterations where it converges); without, the
-  cone fixed point (:mod:`compute.solvers.cone_point`), which converges on jammed frictional
-  rigid packings where the former stalls (80–106 iterations there), and is 4 times slower than
-  it on a soft mixture. Both start cold: the cone fixed point's first shift from a stalled NLGS
-  iterate left it at 7e-6 on rj200, against 3e-7 from zero impulses (the Stewart–Trinkle
-  interior point does not use a warm start).
+  that needs tens of thousands of sweeps, while an interior point's iterations do not grow with
+  the packing. NLGS hands over when its last ``STALL_WINDOW`` sweeps, kept up, would not reach
+  the tolerance within its budget, so that the fallback is paid only where NLGS would miss: its
+  sparse factorisations cost hundreds of sweeps on a 200-disk packing and thousands on a
+  1500-disk one, so no fixed threshold in sweeps suits both. With soft bodies the fallback is
+  the Stewart–Trinkle interior point (:mod:`compute.solvers.interior_point`); without, that one
+  and then the cone fixed point (:mod:`compute.solvers.cone_point`): the first settles most
+  solves of a packing on its way to jamming, the second converges on the jammed ones, where the
+  first stalls. Each starts cold: the cone fixed point's first shift from a stalled NLGS iterate
+  was a worse start than zero impulses.
 
-The answer kept is the one with the smaller error: the fallback may do worse than NLGS's iterate
-(the interior point on a jammed frictional rigid packing). Where the interior point misses, NLGS
-goes on from the better iterate for the rest of its sweeps (``resume``): it had stopped only for
-being slow, and slow is still better than stopped.
+The answer kept is the one with the smallest error: a fallback may do worse than NLGS's iterate.
+Where every fallback misses, NLGS goes on from the best iterate for the rest of its sweeps
+(``resume``): it had stopped only for being slow, and slow is still better than stopped. Figures
+for all of this: benchmarks/results/contact_problems.md.
 """
 
 from __future__ import annotations
@@ -41,14 +38,16 @@ from compute.solvers.nlgs import NLGS
 from compute.solvers.residual import Measure
 
 STALL_WINDOW = 50  # sweeps between NLGS's stall checks
-FALLBACK_IP_ITERATIONS = 40  # nlgs_ip: where the interior point converges it needs 12-22 iterations
-FALLBACK_CONE_ITERATIONS = 150  # and the cone fixed point 80-106 on the rigid packings measured
+FALLBACK_IP_ITERATIONS = 40  # nlgs_ip: about twice what the interior point needs where it converges
+FALLBACK_CONE_ITERATIONS = 150  # and the cone fixed point (contact_problems.md)
 
 
 @dataclass(frozen=True)
 class NLGSThen:
-    """``first`` (an NLGS with stall detection), then ``then`` from its iterate if it stalled;
-    each has its own iteration budget. Stops on ``first``'s tolerance and measure."""
+    """``first`` (an NLGS with stall detection), then, if it stalled, ``then`` (a solver, or a tuple
+    of solvers tried in turn until one reaches the tolerance), from NLGS's iterate or, ``cold``,
+    from zero impulses; each has its own iteration budget. Stops on ``first``'s tolerance and
+    measure."""
 
     first: NLGS
     then: object
