@@ -27,8 +27,8 @@ Stewart–Trinkle system before its reduction and the same count after it. The p
 z = w = rms(b) at every outer step.
 
 Outer iteration: a solution of the LCP with s = μ |u_t| is a Coulomb solution, so
-s ← (1 − θ) s + θ μ |u_t(s)| (``damping`` θ, 1 by default: on rj200 it divides the error by 5–10
-per step where θ = 0.5 divides it by 2). The first s is μ |u_t| of the warm-start impulses'
+s ← (1 − θ) s + θ μ |u_t(s)| (``damping`` θ, 1 by default: undamped, the error fell several
+times faster per step on the rigid packings measured). The first s is μ |u_t| of the warm-start impulses'
 velocities, for zero impulses of the free velocity: with s = 0 a cone LCP can have no solution
 (a self-stress inside the cones whose cost (q + s e_n)ᵀ r is negative, seen on the rank-deficient
 test problems with overlapping gaps), and its interior point then runs the impulses to infinity,
@@ -39,8 +39,8 @@ strictly monotone, bounded, and exact at a fixed point (r = r̄). Each LCP is so
 measure is evaluated at every interior-point iterate, and the solve stops as soon as it is at
 most the tolerance.
 
-Polish: the fixed point converges linearly and stalls on jammed packings (rj200: near 3e-6, with
-contacts flickering between stick and slip; benchmarks/results/contact_problems.md). Once an
+Polish: the fixed point converges linearly and stalls on jammed packings (contacts flickering
+between stick and slip; benchmarks/results/contact_problems.md). Once an
 outer step does not halve the error (``STALL``), at most ``polish`` Levenberg–Marquardt steps on
 the Alart–Curnier function take over from the best impulses (``levenberg_marquardt``). The best
 impulses found are returned with their error.
@@ -68,8 +68,8 @@ STALL = 0.5  # the fixed point has stalled when an outer step does not divide th
 LM_DAMPING = 1e-3  # Levenberg–Marquardt's λ over |F|
 ARMIJO = 1e-4  # sufficient decrease of |F|² of a Levenberg–Marquardt step
 ARMIJO_HALVINGS = 30
-# Both Newton matrices are symmetric positive definite: a symmetric ordering, no pivoting. On the
-# 1500-disk packing COLAMD took 42 ms per cone-LCP factorisation and 280 ms per Levenberg–Marquardt one, this 17 and 80.
+# Both Newton matrices are symmetric positive definite: a symmetric ordering, no pivoting (on the
+# 1500-disk packing 2.5 to 3.5 times faster than COLAMD: benchmarks/results/contact_problems.md).
 SYMMETRIC = {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
 
 
