@@ -318,7 +318,10 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                             record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
                     fill()
                     if not queue and running:
-                        _hand_out_cores(client, running, threads, shares, say)
+                        try:
+                            _hand_out_cores(client, running, threads, shares, say)
+                        except Exception as exc:  # a core not handed out costs time, never the study
+                            say(f"warning: freed cores not handed out: {type(exc).__name__}: {exc}")
                     if shown is not None:
                         _show_progress(shown, len(todo) - len(queue) - len(running), list(running.values()))
                 if shown is not None:
