@@ -12,7 +12,8 @@ Groups smaller than compute.threads.MIN_BODIES_PER_THREAD per thread run on one 
 the configuration, so the scene must hold enough soft bodies for the configurations to differ
 (e.g. a κ = 1 mixture of 500 disks).
 
-Writes benchmarks/results/threads.md.
+Writes benchmarks/results/threads.md (keeping the section of benchmarks/freed_cores.py: a run
+switched from 1 to 2 threads while it runs by OUT/threads).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
+FREED_CORES = "## A run given a freed core while it runs"
 CONFIGS = {  # name: (environment, --threads)
     "1 thread": ({}, 1),
     "2 threads, omp, OMP_WAIT_POLICY=active": ({"NUMBA_THREADING_LAYER": "omp", "OMP_WAIT_POLICY": "active"}, 2),
@@ -111,7 +113,9 @@ def main(argv=None) -> None:
               "| pool | µs per launch |", "|---|---|"]
     lines += [f"| {name} | {us:.1f} |" for name, us in launch_costs().items()]
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "threads.md").write_text("\n".join(lines) + "\n")
+    old = (RESULTS / "threads.md").read_text() if (RESULTS / "threads.md").is_file() else ""
+    kept = old[old.index(FREED_CORES):] if FREED_CORES in old else ""  # benchmarks/freed_cores.py's section
+    (RESULTS / "threads.md").write_text("\n".join(lines) + "\n" + ("\n" + kept if kept else ""))
     print("\n".join(lines))
 
 

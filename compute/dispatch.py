@@ -16,10 +16,28 @@ The task starts a child process ``python -m compute.dispatch SCENE OUT`` and wai
   ``PR_SET_PDEATHSIG``): killing the study kills its runs, they resume from their checkpoints;
 - the child always runs with ``resume=True`` (compute.run: from ``OUT/checkpoint`` when there is
   one, else from the scene);
-- numba, OpenMP and BLAS threads are capped to ``threads`` per run (default 1: the runs, not the
-  threads, fill the cores: two runs of two threads each would oversubscribe two cores,
-  benchmarks/results/threads.md);
+- the run starts with ``threads`` threads (``--threads``, default 1: the runs, not the threads,
+  fill the cores: two runs of two threads each would oversubscribe two cores,
+  benchmarks/results/threads.md); OpenMP and BLAS threads are capped to it, while numba's pool
+  (NUMBA_NUM_THREADS) is sized for the cores of the machine so that the run can be given more
+  (below);
 - its stdout and stderr are appended to ``OUT/compute.log``.
+
+Freed cores go to the runs still going
+--------------------------------------
+When a study has more runs than workers, its last runs would go on with ``threads`` threads each
+while the workers that finished sit idle. So once no run is left to start, the dispatcher gives
+each host's cores (its workers' threads × ``threads``) to the runs going on it: a run's share is
+:func:`core_shares` (cores // runs, the remainder to the runs started first, never below
+``threads``), written atomically to ``OUT/threads`` (compute.files.write_text) whenever it
+changes; the run reads that file after every step (one stat; :class:`compute.threads.ThreadsFile`)
+and uses that many threads from its next step (capped to its numba pool). Its results do not
+depend on it (the body-group kernels are per body, tests/compute/test_threads_file.py); a soft
+group gains from 2 threads only from 400 bodies on (compute.threads.for_bodies). The
+dispatcher writes ``OUT/threads`` = ``threads`` before starting a run (a file left by a killed
+study does not carry over) and removes it when the run ends. The hosts are told apart by the
+workers' addresses, and a run's host by the scheduler's ``processing`` (a round trip every
+``POLL`` s once the queue is empty): a run is never handed another machine's cores.
 
 Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE), ``incomplete``
 (the child finished the loading program but wrote OUT/INCOMPLETE: some stage not equilibrated or
@@ -50,13 +68,32 @@ from pathlib import Path
 
 from compute.progress import Display, read_progress
 
-__all__ = ["RunSpec", "RunResult", "dispatch", "execute_run", "local_cluster", "run_status", "run_times"]
+__all__ = ["RunSpec", "RunResult", "core_shares", "dispatch", "execute_run", "local_cluster", "run_status",
+           "run_times"]
 
 LOG = "compute.log"
 POLL = 2.0  # seconds between two looks at the running runs' progress
 CHILD_ALREADY_COMPLETE = 10  # child exit code: another process completed the run meanwhile
 _CHILD_CODES = {0: "complete", CHILD_ALREADY_COMPLETE: "skipped", 2: "failed", 3: "failed", 4: "failed", 1: "failed"}
-_THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")  # NUMBA_NUM_THREADS: the pool
+
+
+def core_shares(cores: int, runs: int, least: int = 1) -> list[int]:
+    """Threads of each of ``runs`` runs sharing ``cores``: cores // runs, the remainder to the
+    first runs, and never fewer than ``least`` (a run keeps the threads it started with)."""
+    if runs <= 0:
+        return []
+    base, extra = divmod(cores, runs)
+    return [max(least, base + (k < extra)) for k in range(runs)]
+
+
+def _pool_size(threads: int) -> int:
+    """NUMBA_NUM_THREADS of a run process: the cores this process may use (at least ``threads``)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return max(int(threads), cores)
 
 
 @dataclass(frozen=True)
@@ -149,8 +186,9 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
     resumed = status == "partial"
     env = dict(os.environ)
     env.update({k: str(int(threads)) for k in _THREAD_VARIABLES})
+    env["NUMBA_NUM_THREADS"] = str(_pool_size(threads))  # room for the freed cores (module docstring)
     env["SOFTRIGID_PARENT_PID"] = str(os.getpid())
-    cmd = [sys.executable, "-m", "compute.dispatch", str(scene), str(out)]
+    cmd = [sys.executable, "-m", "compute.dispatch", str(scene), str(out), "--threads", str(int(threads))]
     if retry_failed:
         cmd.append("--retry-failed")
     if checkpoint_minutes is not None:
@@ -206,7 +244,7 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
 
     scheduler: a Dask scheduler address (``tcp://host:8786``); None starts
     :func:`local_cluster` (``n_workers`` workers, one thread each) for the duration of the call.
-    threads: numba/BLAS threads per run. checkpoint_minutes: each run also checkpoints after that
+    threads: threads per run at first (more once no run is left to start: module docstring). checkpoint_minutes: each run also checkpoints after that
     much wall time (compute.run.Run). Returns one :class:`RunResult` per run, in the order
     of ``runs``; also appended to ``log_file`` (JSON lines) when given. ``progress``: show the
     overall progress and each running run's stage (:mod:`compute.progress`: a bar on a terminal,
@@ -252,10 +290,14 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                 queue, running = list(todo), {}
                 shown = progress if isinstance(progress, Display) else Display(len(todo), "study") if progress else None
 
+                shares: dict[RunSpec, int] = {}  # threads last written to each running run's OUT/threads
+
                 def fill() -> None:
                     slots = max(1, sum(client.nthreads().values()))
                     while queue and len(running) < slots:
                         spec = queue.pop(0)
+                        _write_threads(spec.out, threads)  # not a share left by a killed study
+                        shares[spec] = threads
                         future = client.submit(execute_run, str(spec.scene), str(spec.out), threads, retry_failed,
                                                checkpoint_minutes, key=f"run-{spec.name}-{time.time_ns()}", pure=False)
                         running[future] = spec
@@ -268,11 +310,18 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                         pass
                     for future in [f for f in running if f.done()]:
                         spec = running.pop(future)
+                        shares.pop(spec, None)
+                        _remove_threads(spec.out)
                         try:
                             record(RunResult(spec.name, **future.result()))
                         except Exception as exc:  # the task itself died (worker lost, ...)
                             record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
                     fill()
+                    if not queue and running:
+                        try:
+                            _hand_out_cores(client, running, threads, shares, say)
+                        except Exception as exc:  # a core not handed out costs time, never the study
+                            say(f"warning: freed cores not handed out: {type(exc).__name__}: {exc}")
                     if shown is not None:
                         _show_progress(shown, len(todo) - len(queue) - len(running), list(running.values()))
                 if shown is not None:
@@ -282,6 +331,49 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
             if cluster is not None:
                 cluster.close()
     return [results[n] for n in names]
+
+
+def _write_threads(out: Path, n: int) -> None:
+    from compute import files
+    from compute.threads import THREADS_FILE
+
+    Path(out).mkdir(parents=True, exist_ok=True)
+    files.write_text(Path(out) / THREADS_FILE, f"{int(n)}\n")
+
+
+def _remove_threads(out: Path) -> None:
+    from compute.threads import THREADS_FILE
+
+    try:
+        (Path(out) / THREADS_FILE).unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def _hand_out_cores(client, running: dict, threads: int, shares: dict, say: Callable[[str], None]) -> None:
+    """Give each host's cores to the runs going on it (module docstring): OUT/threads of each run
+    whose share changed. Nothing is written while some run is not yet placed on a worker."""
+    from distributed.comm import get_address_host
+
+    nthreads = client.nthreads()
+    where = {key: worker for worker, keys in client.processing().items() for key in keys}
+    by_host: dict[str, list] = {}
+    for future, spec in running.items():  # in the order the runs started
+        worker = where.get(future.key)
+        if worker is None:
+            return  # not placed yet: next time
+        by_host.setdefault(get_address_host(worker), []).append(spec)
+    for host, specs in by_host.items():
+        cores = threads * sum(n for w, n in nthreads.items() if get_address_host(w) == host)
+        for spec, n in zip(specs, core_shares(cores, len(specs), threads)):
+            if shares.get(spec) != n:
+                try:
+                    _write_threads(spec.out, n)
+                except Exception as exc:  # a share not given costs time, not results
+                    say(f"warning: could not give {spec.name} {n} threads: {exc}")
+                    continue
+                say(f"{spec.name}: {n} threads (cores freed on {host})")
+                shares[spec] = n
 
 
 # --------------------------------------------------------------------------- the child process
@@ -301,8 +393,14 @@ def _die_with_parent() -> None:
         sys.exit(f"parent {parent} is gone: not starting")
 
 
+def _numba_pool() -> int:
+    import numba
+
+    return numba.config.NUMBA_NUM_THREADS
+
+
 def _child(argv: list[str] | None = None) -> int:
-    """``python -m compute.dispatch SCENE OUT [--retry-failed] [--checkpoint-minutes M]``: one run,
+    """``python -m compute.dispatch SCENE OUT [--retry-failed] [--checkpoint-minutes M] [--threads N]``: one run,
     under OUT's lock."""
     import argparse
     import traceback
@@ -316,6 +414,7 @@ def _child(argv: list[str] | None = None) -> int:
     p.add_argument("out")
     p.add_argument("--retry-failed", action="store_true")
     p.add_argument("--checkpoint-minutes", type=float, default=None)
+    p.add_argument("--threads", type=int, default=None, help="threads at first (default: NUMBA_NUM_THREADS)")
     a = p.parse_args(argv)
     _die_with_parent()
     out = Path(a.out)
@@ -342,7 +441,8 @@ def _child(argv: list[str] | None = None) -> int:
         from compute.run import run
         from compute.threads import configure
 
-        configure()  # NUMBA_NUM_THREADS (set by execute_run) threads, passive when idle
+        # --threads at first, up to NUMBA_NUM_THREADS later (OUT/threads), passive when idle
+        configure(None if a.threads is None else min(a.threads, _numba_pool()))
 
         try:
             run(a.scene, out, resume=True, log=lambda msg: print(msg, flush=True), checkpoint_minutes=a.checkpoint_minutes)

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from compute import files, output, output_folder, stall, summary, wall_crossing
+from compute.threads import ThreadsFile
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
 from compute.progress import Display, RunProgress
@@ -71,6 +72,7 @@ class Run:
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
         self.stepper = Stepper(self.model)
+        self._threads = ThreadsFile(self.out, self.log)  # OUT/threads, read after every step
         self._display = display
         self._lock = output_folder.acquire(self.out, wait)  # held until execute() returns
         try:
@@ -149,6 +151,7 @@ class Run:
         finished = False
         on_main = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, self._ask_stop) if on_main else None
+        self._threads.poll()
         try:
             stall_diagnosis = None
             if self.scene.walls.control == "velocity":
@@ -252,6 +255,7 @@ class Run:
         """History row and frames after an accepted step; returns its φ. A step whose φ passes 1
         stops the run with a diagnosis before its row is written."""
         st = self.state
+        self._threads.poll()  # a share of freed cores given by the dispatcher (compute.threads)
         self.last_contacts = rep.contacts
         st.stage_steps += 1
         b = self.model.bounds(st.q)

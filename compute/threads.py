@@ -12,14 +12,26 @@ with one thread), which a small group of bodies does not earn back: ``for_bodies
 group one thread per ``MIN_BODIES_PER_THREAD`` bodies, up to the configured number (with 74
 soft bodies, the 144-disk mixture ran 6.75 s on two passive threads against 6.35 s on one
 before this rule).
+
+A run may be given more threads while it runs (:class:`ThreadsFile`): it reads an optional file
+``OUT/threads`` (one integer) after every step and, when it changed, calls ``configure`` again
+with it (capped to NUMBA_NUM_THREADS, the pool numba started with). Why: a study dispatcher
+(compute.dispatch) starts each run with one thread, so that the runs fill the cores; once fewer
+runs remain than cores, it writes each remaining run's share of the freed cores there instead of
+leaving them idle. ``configure`` only sets the cap that ``for_bodies`` applies at every kernel
+launch, so the change takes effect at the next body-group kernel. The kernels are per body (no
+reduction across bodies), so a run's results do not depend on its thread count
+(tests/compute/test_threads_file.py checks it bit for bit).
 """
 
 from __future__ import annotations
 
 import functools
 import os
+from pathlib import Path
 
 MIN_BODIES_PER_THREAD = 200
+THREADS_FILE = "threads"  # OUT/threads: the most threads a run may use from its next step
 _max_threads: int | None = None
 
 
@@ -37,12 +49,61 @@ def configure(threads: int | None = None) -> int:
     return _max_threads
 
 
+def configured() -> int:
+    """The most threads a run may use now (configure's, else NUMBA_NUM_THREADS)."""
+    import numba
+
+    return _max_threads or numba.config.NUMBA_NUM_THREADS
+
+
+class ThreadsFile:
+    """``OUT/threads``, followed by a running run: ``poll()`` after every step costs one stat;
+    the file is read only when its inode, size or modification time changed (it is replaced
+    atomically by its writer, compute.files.write_text), and ``configure`` is called when the
+    number in it differs from the current one. A missing file changes nothing; a file that is not
+    one positive integer is logged and ignored; a number above NUMBA_NUM_THREADS is capped to it."""
+
+    def __init__(self, out: str | Path, log=None):
+        self.path = Path(out) / THREADS_FILE
+        self.log = log or (lambda msg: None)
+        self._seen: tuple | None = None
+
+    def poll(self) -> int | None:
+        """The new number of threads when it changed (and was applied), else None."""
+        try:
+            st = os.stat(self.path)
+        except OSError:  # absent (the usual case), or unreadable folder: keep the threads
+            self._seen = None
+            return None
+        key = (st.st_ino, st.st_size, st.st_mtime_ns)
+        if key == self._seen:
+            return None
+        self._seen = key
+        try:
+            text = self.path.read_text().strip()
+            wanted = int(text)
+            if wanted < 1:
+                raise ValueError(text)
+        except (OSError, ValueError) as exc:
+            self.log(f"warning: {self.path}: expected one positive integer (threads), got {exc}; ignored")
+            return None
+        import numba
+
+        n = min(wanted, numba.config.NUMBA_NUM_THREADS)
+        if n == configured():
+            return None
+        before = configured()
+        configure(n)
+        self.log(f"threads: {before} -> {n} ({self.path}"
+                 + (f" asks {wanted}, NUMBA_NUM_THREADS is {n})" if wanted != n else ")"))
+        return n
+
+
 def for_bodies(n: int) -> None:
     """Set the threads of the next parallel kernels (in this thread) for a group of n bodies."""
     import numba
 
-    most = _max_threads or numba.config.NUMBA_NUM_THREADS
-    numba.set_num_threads(max(1, min(most, n // MIN_BODIES_PER_THREAD)))
+    numba.set_num_threads(max(1, min(configured(), n // MIN_BODIES_PER_THREAD)))
 
 
 def sized_to_group(method):
