@@ -44,15 +44,14 @@ FALLBACK_CONE_ITERATIONS = 150  # and the cone fixed point (contact_problems.md)
 
 @dataclass(frozen=True)
 class NLGSThen:
-    """``first`` (an NLGS with stall detection), then, if it stalled, ``then`` (a solver, or a tuple
-    of solvers tried in turn until one reaches the tolerance), from NLGS's iterate or, ``cold``,
-    from zero impulses; each has its own iteration budget. Stops on ``first``'s tolerance and
-    measure."""
+    """``first`` (an NLGS with stall detection), then, if it stalled, the ``fallbacks`` in turn
+    until one reaches the tolerance, each from NLGS's iterate or, ``cold``, from zero impulses,
+    with its own iteration budget. Stops on ``first``'s tolerance and measure."""
 
     first: NLGS
-    then: object
-    resume: bool = False  # NLGS goes on (without stall detection) from the better iterate if ``then`` misses
-    cold: bool = False  # ``then`` starts from zero impulses, not from NLGS's iterate
+    fallbacks: tuple
+    resume: bool = False  # NLGS goes on (without stall detection) from the best iterate if every fallback misses
+    cold: bool = False  # the fallbacks start from zero impulses, not from NLGS's iterate
 
     @property
     def tolerance(self) -> float:
@@ -66,17 +65,18 @@ class NLGSThen:
     def block(cls, tolerance: float, max_sweeps: int, relaxation: float = 1.0, measure: Measure = Measure()):
         """``nlgs_block``: NLGS until it oscillates, then block Gauss–Seidel."""
         return cls(NLGS(tolerance, max_sweeps, relaxation, STALL_WINDOW, measure),
-                   BlockGS(tolerance, max_sweeps, measure))
+                   (BlockGS(tolerance, max_sweeps, measure),))
 
     @classmethod
     def interior_point(cls, tolerance: float, max_sweeps: int, relaxation: float = 1.0,
                        measure: Measure = Measure(), soft: bool = True):
         """``nlgs_ip``: NLGS until it oscillates or is projected too slow, then an interior point
-        (with ``soft`` bodies the Stewart–Trinkle one, else the cone fixed point), then NLGS
-        again if that missed."""
-        then = InteriorPoint(tolerance, FALLBACK_IP_ITERATIONS, measure) if soft else \
-            (InteriorPoint(tolerance, FALLBACK_IP_ITERATIONS, measure), ConePoint(tolerance, FALLBACK_CONE_ITERATIONS, measure))
-        return cls(NLGS(tolerance, max_sweeps, relaxation, STALL_WINDOW, measure, max_sweeps), then,
+        (the Stewart–Trinkle one, without ``soft`` bodies then the cone fixed point), then NLGS
+        again if they missed."""
+        fallbacks = (InteriorPoint(tolerance, FALLBACK_IP_ITERATIONS, measure),)
+        if not soft:
+            fallbacks += (ConePoint(tolerance, FALLBACK_CONE_ITERATIONS, measure),)
+        return cls(NLGS(tolerance, max_sweeps, relaxation, STALL_WINDOW, measure, max_sweeps), fallbacks,
                    resume=True, cold=True)
 
     def solve(self, problem) -> SolveReport:
@@ -85,7 +85,7 @@ class NLGSThen:
         if first.residual <= self.tolerance or first.iterations >= self.first.max_sweeps:
             return first
         best, kept, iterations = first, problem.impulse.copy(), first.iterations
-        for fallback in (self.then if isinstance(self.then, tuple) else (self.then,)):
+        for fallback in self.fallbacks:
             if self.cold:
                 problem.impulse[:] = 0.0
             then = fallback.solve(problem)

@@ -147,10 +147,9 @@ def contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free):
     wnn = np.empty(nc)
     for c in range(nc):
         u[c, 0], u[c, 1], size[c] = contact_velocity(dof, hn, ht, gap_term[c], v, c)
-        if kind != IMPULSE:
-            un, ut, _ = contact_velocity(dof, hn, ht, 0.0, v, c)
+        if kind != IMPULSE:  # w = Hᵀ (v - v_free): u less its gap term, less the free velocity's
             fn, ft, _ = contact_velocity(dof, hn, ht, 0.0, v_free, c)
-            w[c, 0], w[c, 1] = un - fn, ut - ft
+            w[c, 0], w[c, 1] = u[c, 0] - gap_term[c] - fn, u[c, 1] - ft
         wnn[c] = W[c, 0, 0]
     return local_contact_error(kind, tol, bound, wnn, u, w, r, mu, size)
 

@@ -249,9 +249,9 @@ def test_auto_choice():
     settings = SimpleNamespace(contact="auto", nlgs_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0,
                                contact_error="impulse", penetration_bound=0.0)
     assert isinstance(for_scene(settings, 1, 0), BlockGS)
-    assert isinstance(for_scene(settings, 1, 3).then, BlockGS) and isinstance(for_scene(settings, 72, 72).then, BlockGS)
-    assert isinstance(for_scene(settings, 2, 0).then, BlockGS)
-    assert isinstance(for_scene(settings, 0, 100).then[1], ConePoint)
+    assert isinstance(for_scene(settings, 1, 3).fallbacks[0], BlockGS) and isinstance(for_scene(settings, 72, 72).fallbacks[0], BlockGS)
+    assert isinstance(for_scene(settings, 2, 0).fallbacks[0], BlockGS)
+    assert isinstance(for_scene(settings, 0, 100).fallbacks[1], ConePoint)
     assert isinstance(for_scene(settings, 0, 1500), NLGS)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)
 
@@ -419,9 +419,9 @@ def test_nlgs_then_keeps_the_better_iterate():
 
     first = NLGS(1e-10, 1_000_000, stall_window=STALL_WINDOW, projected_limit=1000)
     p = chain_problem()
-    kept = NLGSThen(first, InteriorPoint(1e-10, 1)).solve(p)
+    kept = NLGSThen(first, (InteriorPoint(1e-10, 1),)).solve(p)
     q = chain_problem()
     alone = first.solve(q)
     assert kept.residual == pytest.approx(alone.residual) and np.array_equal(p.impulse, q.impulse)
-    resumed = NLGSThen(first, InteriorPoint(1e-10, 1), resume=True).solve(chain_problem())
+    resumed = NLGSThen(first, (InteriorPoint(1e-10, 1),), resume=True).solve(chain_problem())
     assert resumed.residual <= 1e-10
