@@ -1,0 +1,79 @@
+"""Where a loading program's steps go, stage by stage, read from the runs' histories.
+
+For each run folder (``RUN/out/history.csv`` or ``history.csv.gz``), per pressure stage: the
+steps the stage took, the step from which φ stayed within ``--band`` of the stage's end value
+(what the packing needed; the rest is the stage-end test waiting for the walls and the
+inertial number), the Newton iterations and the cut steps. The figures are counts, not
+timings: they do not depend on what else the machine was doing.
+
+    python benchmarks/stage_steps.py studies/mixture_compaction/results/n1500_t3/runs/* \\
+        --output stage_steps_n1500
+
+writes benchmarks/results/OUTPUT.md (or prints the table without --output).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+from pathlib import Path
+
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def read_history(run: Path) -> np.ndarray:
+    """The structured array (steps,) of ``run``/out/history.csv, plain or gzip-compressed."""
+    out = run / "out" if (run / "out").is_dir() else run
+    for name, opener in (("history.csv", open), ("history.csv.gz", gzip.open)):
+        if (out / name).is_file():
+            with opener(out / name, "rt") as f:
+                return np.genfromtxt(f, delimiter=",", names=True)
+    raise FileNotFoundError(f"{out}: no history.csv or history.csv.gz")
+
+
+def stage_counts(history: np.ndarray, band: float) -> list[dict]:
+    """Per stage: steps, steps until φ stays within ``band`` (absolute) of the stage's last φ,
+    Newton iterations, steps with cuts, and the stage's last φ."""
+    rows = []
+    stages = history["stage"].astype(int)
+    for s in np.unique(stages):
+        h = history[stages == s]
+        phi = h["phi"]
+        outside = np.flatnonzero(np.abs(phi - phi[-1]) > band)
+        rows.append({"stage": int(s), "P": float(h["pressure_applied"][-1]), "steps": len(h),
+                     "plateau": int(outside[-1] + 1) if len(outside) else 0,
+                     "newton": int(h["newton_iterations"].sum()), "cut_steps": int(np.count_nonzero(h["cuts"])),
+                     "phi": float(phi[-1])})
+    return rows
+
+
+def table(runs: list[Path], band: float) -> str:
+    lines = [f"Per stage: steps / steps until φ stays within {band:g} of the stage's end φ / Newton "
+             "iterations. Last column: all steps and all Newton iterations of the run.", "",
+             "| run | " + " | ".join(f"stage {i}" for i in range(7)) + " | run |",
+             "|---|" + "---|" * 8]
+    for run in runs:
+        rows = stage_counts(read_history(run), band)
+        cells = [f"{r['steps']} / {r['plateau']} / {r['newton']}" for r in rows]
+        total = f"{sum(r['steps'] for r in rows)} / {sum(r['newton'] for r in rows)}"
+        lines.append(f"| {run.parent.parent.name}/{run.name} | " + " | ".join(cells + [""] * (7 - len(cells)))
+                     + f" | {total} |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("runs", type=Path, nargs="+", help="run folders (holding out/history.csv[.gz])")
+    ap.add_argument("--band", type=float, default=5e-4, help="φ band around a stage's end value (default 5e-4)")
+    ap.add_argument("--output", help="write benchmarks/results/OUTPUT.md instead of printing")
+    a = ap.parse_args()
+    text = table(sorted(a.runs), a.band)
+    if a.output:
+        (RESULTS / f"{a.output}.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
