@@ -26,7 +26,7 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   of the box in a T3 mixture at P/E = 1), and at high pressure a disk can wedge through a
   stretched boundary segment into the body (1500-disk T3 mixtures at P/E = 1: disks 1.5–2
   segment lengths deep; frictionless ones fail there on the elements it inverts;
-  benchmarks/overlaps.py lists them). The scene's ``solver.rigid_soft_rows =
+  benchmarks/experiments/overlaps.py lists them). The scene's ``solver.rigid_soft_rows =
   "nodes_and_segments"`` adds the segment-disk rows below, which keep the disk off the
   segments too.
 - segment-disk ``(g, d)``, g the loop node that starts a boundary segment (the segment g -> its
@@ -47,7 +47,7 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   starts with a few hundred rows 1.5–2e-3 inside (node-disk rows: 3e-5) that the next step
   pushes out, and the packing creeps: a stage does not end. With T3 there is no such
   oscillation, but the 144-disk program takes twice the steps (657 against 324).
-  benchmarks/segment_gap_linearisation.py and benchmarks/experiments/README.md have the
+  benchmarks/experiments/segment_gap_linearisation.py and benchmarks/experiments/README.md have the
   measurements. What they buy: at P/E = 1 no overlap of rigid and soft bodies (3e-5 of the box
   against 4.8e-3) and no wedged disk, where frictionless T3 mixtures with rigid disks fail with
   node-disk rows alone (1500 disks: kappa = 0.2 and 0.5 failed at P/E = 1, kappa = 0.8 had
@@ -55,7 +55,7 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   into a straight segment until both its nodes move, so a 20-node boundary is stiffer against
   it than the body it stands for; on the 144-disk mixture at P/E = 1 φ is 0.010–0.012 below the
   value both formulations approach as the mesh is refined, where node rows' φ less their
-  overlap is within 0.005 (benchmarks/contact_rows_refinement.py).
+  overlap is within 0.005 (benchmarks/experiments/contact_rows_refinement.py).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);

@@ -9,7 +9,7 @@ stage and its largest difference from the tight run's. Writes benchmarks/results
     git worktree add /tmp/before <commit before the sliding test>
     python -m studies.mixture_compaction.pre --workdir W --n 144 --kappa 0.5 --mu 0.2 --element T6 \\
         --pressures 0.01 0.03 0.1 0.3 1
-    python benchmarks/stage_window.py --scene W/runs/k0.5_mu0.2_s1/scene --before /tmp/before \\
+    python benchmarks/experiments/stage_window.py --scene W/runs/k0.5_mu0.2_s1/scene --before /tmp/before \\
         --output stage_window_144
 """
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 from stage_criterion import stages_of, write_table
 
-HERE = Path(__file__).resolve().parents[1]
+HERE = Path(__file__).resolve().parents[2]
 
 
 def run_in(checkout: Path, scene: Path, out: Path) -> dict:
@@ -60,7 +60,7 @@ def main() -> None:
             rows[name] = r = run_in(checkout, folder, Path(tmp) / f"out{len(rows)}")
             print(f"{name}: {r['status']}, {sum(r['steps'])} steps {r['steps']}, {r['seconds']:.0f} s", flush=True)
     write_table(f"Stage-end test: sliding window against checks every check_every steps ({scene.parent.name})",
-                f"`python benchmarks/stage_window.py --scene {a.scene} --before {a.before} --output {a.output}`; "
+                f"`python benchmarks/experiments/stage_window.py --scene {a.scene} --before {a.before} --output {a.output}`; "
                 f"check_every = {loading['check_every']}, phi_tolerance = {loading['phi_tolerance']:g}, inertial_tolerance = "
                 f"{loading['inertial_tolerance']:g}, force_tolerance = {loading['force_tolerance']:g}. One thread per run, "
                 "the runs one after the other.", "run", rows, rows["tight (after, tolerances / 10)"], a.output)

@@ -9,7 +9,7 @@ median impulse over the body's active contacts, for scale. The gap is shown as t
 it, g̃ / (h θ) with h the step's first sub-step. For the diagnosis of a step that
 fails on one body (its Newton matrix indefinite, elements over-compressed).
 
-    python benchmarks/step_contacts.py --run studies/mixture_compaction/results/n1500/runs/k0.5_mu0.2_s1 \\
+    python benchmarks/experiments/step_contacts.py --run studies/mixture_compaction/results/n1500/runs/k0.5_mu0.2_s1 \\
         --steps-before 8 --body 278
 """
 
@@ -26,6 +26,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
 import checkout  # noqa: E402
 from sweep_cost import FirstProblem  # noqa: E402
 

@@ -13,7 +13,7 @@ node-segment candidate holds each (node, body) pair, and the deepest ones with t
 reports. Why: to tell a packing fraction above 1 from the curved T6 edges (phi > 1 while
 phi_contact < 1 and the penetrations are small) from contacts that miss overlaps.
 
-    python benchmarks/overlaps.py --run studies/mixture_compaction/results/n1500/runs/k1_mu0.2_s1
+    python benchmarks/experiments/overlaps.py --run studies/mixture_compaction/results/n1500/runs/k1_mu0.2_s1
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
 import checkout  # noqa: E402
 
 

@@ -9,7 +9,7 @@ the segment-disk rows that end the step more than --depth inside, the largest tu
 near a contact, and, for the first of those rows, (after - predicted) against -r a² / 2 (not for
 a step taken in sub-steps: each has its own rows).
 
-    python benchmarks/segment_gap_linearisation.py --scene SCENE --run OUT --pressure 0.1 --steps 4 [--contact-tolerance 1e-6]
+    python benchmarks/experiments/segment_gap_linearisation.py --scene SCENE --run OUT --pressure 0.1 --steps 4 [--contact-tolerance 1e-6]
 
 SCENE must have solver.rigid_soft_rows = "nodes_and_segments"; OUT is a copy of its output
 folder with a checkpoint (it is copied again to a temporary folder, so OUT is not changed).

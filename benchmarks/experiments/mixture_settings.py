@@ -7,7 +7,7 @@ to equilibrium with each setting. Reported: steps, wall seconds, step cuts, Newt
 the final φ (its spread over the settings is the settings' error; the equilibrium test itself
 allows about 1e-4 relative). Writes benchmarks/results/mixture_settings.md.
 
-    python benchmarks/mixture_settings.py [--n 30] [--p-from 0.1] [--p-to 0.3] [--workdir /tmp/mixture_settings]
+    python benchmarks/experiments/mixture_settings.py [--n 30] [--p-from 0.1] [--p-to 0.3] [--workdir /tmp/mixture_settings]
 """
 
 from __future__ import annotations
@@ -69,12 +69,12 @@ def main(argv=None) -> None:
         rows.append(one(base, work, h, newton, a.p_to))
         print(rows[-1], flush=True)
     ref = rows[0]["phi"]
-    lines = [f"# One stage P/E {a.p_from:g} -> {a.p_to:g}, N = {a.n}, kappa = 1, mu = 0.2, T3 x 92 (benchmarks/mixture_settings.py)",
+    lines = [f"# One stage P/E {a.p_from:g} -> {a.p_to:g}, N = {a.n}, kappa = 1, mu = 0.2, T3 x 92 (benchmarks/experiments/mixture_settings.py)",
              "", f"| h | Newton tol | steps | seconds | cuts | Newton it. | phi | phi - phi(h={SETTINGS[0][0]:g}, {SETTINGS[0][1]:g}) |",
              "|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['h']:g} | {r['newton']:g} | {r['steps']} | {r['seconds']:.1f} | {r['cuts']} | {r['newton_iterations']} | "
               f"{r['phi']:.6f} | {r['phi'] - ref:+.1e} |" for r in rows]
-    out = Path(__file__).parent / "results" / "mixture_settings.md"
+    out = Path(__file__).resolve().parents[1] / "results" / "mixture_settings.md"
     out.write_text("\n".join(lines) + "\n")
     print(out)
 

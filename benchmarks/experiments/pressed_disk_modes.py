@@ -13,7 +13,7 @@ interior nodes; the sums are averaged over the negative modes. Also prints the N
 
     python -m studies.single_particle.pre --workdir MD --elements 92 --volumetric mean_dilatation
     python -m studies.single_particle.pre --workdir ST --elements 92 --volumetric standard
-    python benchmarks/pressed_disk_modes.py MD/scene ST/scene
+    python benchmarks/experiments/pressed_disk_modes.py MD/scene ST/scene
 
 Prints markdown.
 """
@@ -33,6 +33,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
 import checkout  # noqa: E402
 from newton_iterations import count_per_stage  # noqa: E402
 from tangent_modes import dense  # noqa: E402

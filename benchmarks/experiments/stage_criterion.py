@@ -11,7 +11,7 @@ benchmarks/results/OUTPUT.md.
 
     python -m studies.mixture_compaction.pre --workdir W --n 144 --kappa 0.5 --mu 0.2 --element T6 \\
         --pressures 0.01 0.03 0.1 0.3 1
-    python benchmarks/stage_criterion.py --scene W/runs/k0.5_mu0.2_s1/scene --check-every 20 10 5 \\
+    python benchmarks/experiments/stage_criterion.py --scene W/runs/k0.5_mu0.2_s1/scene --check-every 20 10 5 \\
         --output stage_criterion_144
 """
 
@@ -31,7 +31,7 @@ from pathlib import Path  # noqa: E402
 
 from pre.scene import copy_scene  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = Path(__file__).resolve().parents[1] / "results"
 
 
 def run_variant(scene: Path, out: Path) -> dict:
@@ -84,7 +84,7 @@ def main() -> None:
             print(f"{name}: {r['status']}, {sum(r['steps'])} steps {r['steps']}, {r['seconds']:.0f} s", flush=True)
     tight = rows[next(iter(variants))]
     write_table(f"Steps per stage against the stage-end test ({a.scene.parent.name})",
-                f"`python benchmarks/stage_criterion.py --scene {a.scene} --check-every "
+                f"`python benchmarks/experiments/stage_criterion.py --scene {a.scene} --check-every "
                 f"{' '.join(map(str, a.check_every))} --time-step {' '.join(map(str, a.time_step))} --output {a.output}`; "
                 f"time step h = {tomllib.loads((a.scene / 'scene.toml').read_text())['solver']['time_step']:g} but in the h = variants; the scene's test: φ change below "
                 f"{value['phi_tolerance']:g} between checks, inertial number below {value['inertial_tolerance']:g}.",

@@ -14,7 +14,7 @@ the iteration counts with the tangent kept or renewed.
    Newton iterations, factorisations and φ at the end of each stage.
 
     python -m studies.single_particle.pre --workdir W
-    python benchmarks/tangent_modes.py --scene W/scene --steps 20 60 104 140 148
+    python benchmarks/experiments/tangent_modes.py --scene W/scene --steps 20 60 104 140 148
 
 Prints markdown (results/tangent_modes.md holds one such output with its commit).
 """
@@ -36,6 +36,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
 import checkout  # noqa: E402
 
 
@@ -127,7 +128,7 @@ def main() -> None:
     renewed = run(a.scene, set(), every_iteration=True)
     group = kept["model"].soft[0]
     print(f"# Negative modes of the single particle's Newton matrix (commit {checkout.commit()})\n")
-    print(f"`python benchmarks/tangent_modes.py --scene W/scene --steps {' '.join(map(str, a.steps))}`, "
+    print(f"`python benchmarks/experiments/tangent_modes.py --scene W/scene --steps {' '.join(map(str, a.steps))}`, "
           f"W from `python -m studies.single_particle.pre --workdir W`; h = {kept['h']:g}.\n")
     print("| step | P/E | negative eigenvalues of A | overlap with rotation, x, y | vᵀh²θ²Gv, vᵀ(A−h²θ²G)v "
           "| smallest positive, largest | smallest of A − h²θ²G |")

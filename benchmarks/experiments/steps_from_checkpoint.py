@@ -9,8 +9,8 @@ reached, seconds); --json appends it to a file.
 
     python -m studies.mixture_compaction.pre --workdir W --n 500 --kappa 1 --mu 0.2 --stages 7
     python -m compute W/runs/k1_mu0.2_s1/scene --out W/runs/k1_mu0.2_s1/out   # stop it in stage 5
-    python benchmarks/steps_from_checkpoint.py --run W/runs/k1_mu0.2_s1 --steps 40 --label after
-    (cd WORKTREE && python /path/to/benchmarks/steps_from_checkpoint.py --run ... --label before)
+    python benchmarks/experiments/steps_from_checkpoint.py --run W/runs/k1_mu0.2_s1 --steps 40 --label after
+    (cd WORKTREE && python /path/to/benchmarks/experiments/steps_from_checkpoint.py --run ... --label before)
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
 import checkout  # noqa: E402
 
 

@@ -14,7 +14,7 @@ step, and times on it, one thread, ``--repeat`` passes each (per pass, in ms):
 and reports the problem's size: contacts, active ones, dense blocks and their mean size, the
 bytes of the compliance values. One JSON line (--json appends it to a file).
 
-    python benchmarks/sweep_cost.py --run W/runs/k1_mu0.2_s1
+    python benchmarks/experiments/sweep_cost.py --run W/runs/k1_mu0.2_s1
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from pathlib import Path  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
 import checkout  # noqa: E402
 
 

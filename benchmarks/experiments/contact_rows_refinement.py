@@ -11,7 +11,7 @@ between two nodes approaches the circle), and the finest mesh is the reference f
 Interrupted runs resume from their checkpoints when the benchmark is started again. Writes
 benchmarks/results/contact_rows_refinement_<element>_mu<μ>.{md,json}.
 
-    python benchmarks/contact_rows_refinement.py --workdir /tmp/rows --elements 92 368 1472
+    python benchmarks/experiments/contact_rows_refinement.py --workdir /tmp/rows --elements 92 368 1472
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from mixture_scaling import describe, run
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
+from mixture_scaling import describe, run  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = Path(__file__).resolve().parent / "results"
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = Path(__file__).resolve().parents[1] / "results"
 ROWS = ("nodes", "nodes_and_segments")
 
 
@@ -85,7 +86,7 @@ def _markdown(record: dict, a, path: Path) -> None:
     head = " | ".join(f"P/E = {p:g}" for p in pressures)
     lines = [f"# Node rows against node and segment rows under refinement (N = {a.n}, κ = {a.kappa:g}, μ = {a.mu:g}, "
              f"{a.element})", "",
-             f"`python benchmarks/contact_rows_refinement.py --workdir W --n {a.n} --kappa {a.kappa:g} --mu {a.mu:g} "
+             f"`python benchmarks/experiments/contact_rows_refinement.py --workdir W --n {a.n} --kappa {a.kappa:g} --mu {a.mu:g} "
              f"--element {a.element} --elements " + " ".join(str(e) for e in sorted({e["elements"] for e in record.values()}))
              + "`: one jammed packing, "
              "the soft disks meshed with each number of elements, each run with `solver.rigid_soft_rows = \"nodes\"` "

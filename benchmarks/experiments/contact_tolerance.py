@@ -8,7 +8,7 @@ wall time, steps, Newton iterations, cuts, contact misses (steps whose solve sto
 tolerance, summary.json) and the error of φ at every equilibrated stage against the reference
 case (nlgs at ``--reference`` tolerance, h = 0.5).
 
-    python benchmarks/contact_tolerance.py --workdir W [--tolerances 1e-2 1e-3 1e-4 1e-5 1e-6]
+    python benchmarks/experiments/contact_tolerance.py --workdir W [--tolerances 1e-2 1e-3 1e-4 1e-5 1e-6]
 
 Cases already run in W (W/cases/<case>/result.json) are not run again.
 
@@ -25,7 +25,8 @@ import sys
 import time
 from pathlib import Path
 
-from soft_step_cost import RESULTS, _child_env, prepare
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # benchmarks/: the shared helpers
+from soft_step_cost import RESULTS, _child_env, prepare  # noqa: E402
 
 PRESSURES = (0.01, 0.03, 0.1, 0.3)
 
@@ -85,7 +86,7 @@ def main(argv=None) -> None:
         print(f"{name}: {r['wall']:.1f} s, {r['status']}, phi {r['phi']}", flush=True)
     ref = results[0]["phi"]
     lines = ["# Run time against error: contact solver, tolerance, time step (144-disk mixture)", "",
-             f"`python benchmarks/contact_tolerance.py --workdir W`; κ = 0.5, μ = 0.2, T3 × 92, P/E = "
+             f"`python benchmarks/experiments/contact_tolerance.py --workdir W`; κ = 0.5, μ = 0.2, T3 × 92, P/E = "
              f"{', '.join(map(str, PRESSURES))}; one thread; reference: nlgs at {a.reference:g}, h = 0.5 "
              f"(φ = {', '.join(f'{p:.6f}' for p in ref)}). |Δφ|: largest over the equilibrated stages.", "",
              "| contact | tolerance | h | wall s | status | steps | Newton iterations | cuts | contact misses | "

@@ -7,7 +7,7 @@ at the loads of the study), and the largest element pressure and von Mises stres
 disk that locks shows element pressures several times the applied P; a mean-dilatation T6 disk
 shows pointwise J far from 1 while its mean pressure stays moderate.
 
-    python benchmarks/element_state.py --run W/runs/k1_mu0.2_s1
+    python benchmarks/experiments/element_state.py --run W/runs/k1_mu0.2_s1
 """
 
 from __future__ import annotations
