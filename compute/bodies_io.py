@@ -187,8 +187,8 @@ def _check_no_overlap(path: Path, bodies: dict) -> None:
                          "non-overlapping bodies", f"bodies {int(i[k])} and {int(j[k])} overlap by {overlap[k]:.3g}")
 
 
-# zlib: a 1500-disk T3 scene is 2.7 MB instead of 14.5 MB, written in 0.4 s; meshio, VTK and ParaView
-# read it as they read raw binary
+# zlib: a large scene's files several times smaller for little write time
+# (benchmarks/results/design_figures.md); meshio, VTK and ParaView read it as they read raw binary
 VTU_COMPRESSION = "zlib"
 
 

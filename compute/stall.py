@@ -12,8 +12,8 @@ whatever its packing does: its contact error is not what keeps it from ending.)
 
 Why: a stage whose contact solves cannot reach their tolerance (too few sweeps for the time
 step) and whose packing no longer compacts never passes the stage-end test (compute.run); it
-ran on to ``max_steps_per_stage`` (200 000 steps, hours for a 12-disk rigid scene with
-``nlgs_max_sweeps = 5``, whose contact error sat at ~0.02) to end INCOMPLETE all the same.
+ran on to ``max_steps_per_stage`` (200 000 steps by default; benchmarks/results/design_figures.md
+has a small rigid scene that did) to end INCOMPLETE all the same.
 
 The rule's memory is part of the state (``State.stall_*``), so a resumed run stalls where the
 uninterrupted one does.

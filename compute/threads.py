@@ -7,11 +7,11 @@ nearly double a run's time while passive ones cost almost nothing alone
 (benchmarks/results/threads.md). Passive threads are the default (a user's OMP_WAIT_POLICY or
 GOMP_SPINCOUNT wins); numba's "workqueue" layer was slower.
 
-A passive pool pays a wake-up for every parallel kernel launch (about 50 µs here, against 2 µs
-with one thread), which a small group of bodies does not earn back: ``for_bodies(n)`` gives a
-group one thread per ``MIN_BODIES_PER_THREAD`` bodies, up to the configured number (with 74
-soft bodies, the 144-disk mixture ran 6.75 s on two passive threads against 6.35 s on one
-before this rule).
+A passive pool pays a wake-up for every parallel kernel launch, many times a one-thread
+launch (benchmarks/results/threads.md), which a small group of bodies does not earn back:
+``for_bodies(n)`` gives a group one thread per ``MIN_BODIES_PER_THREAD`` bodies, up to the
+configured number (the 144-disk mixture's 74 soft bodies ran slower on two passive threads
+than on one before this rule: benchmarks/results/design_figures.md).
 
 A run may be given more threads while it runs (:class:`ThreadsFile`): it reads an optional file
 ``OUT/threads`` (one integer) after every step and, when it changed, calls ``configure`` again

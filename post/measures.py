@@ -11,14 +11,14 @@ Definitions (N_p particles, walls are not particles):
   is inscribed in the curved boundary (0.41 % less area for a 40-node boundary), and where two
   bodies press, their curved edges overlap while their polygons do not. phi counts those overlaps
   twice and can pass 1 as the voids close. phi_contact does not count them; it still counts the
-  overlaps the contacts leave, so it too can pass 1 (a T3 mixture at P/E = 1: 1.0046).
+  overlaps the contacts leave, so it too can pass 1 (a frictionless T3 mixture at P/E = 1:
+  studies/mixture_compaction/README.md).
 - Rigid overlap = V_o / V: V_o the area the rigid disks share with the deformable bodies'
   boundary polygons, exactly (circle-polygon intersection). Node-to-disk contacts keep a soft
   body's nodes out of a rigid disk, not its boundary between them: where a soft body wraps
   around a rigid disk, the disk's arc passes into the polygon between the nodes pressed on it.
-  This is the overlap the contacts leave (node penetrations are 1e-6-deep); it grows with the
-  pressure (1500-disk T3 mixtures at P/E = 1: 0.3 % of the box for kappa = 0.2, 0.6 % for
-  0.5, 1.0 % for 0.8 with mu = 0).
+  This is the overlap the contacts leave (node penetrations are far shallower); it grows with
+  the pressure and the fraction of soft disks (studies/mixture_compaction/README.md, φ_net).
 - Net packing fraction phi_net = phi_contact - rigid overlap: the fraction of the box the
   particles cover, each point once (up to the node penetrations).
 - Active contact: a contact candidate with fn > threshold x mean(fn of the candidates with fn > 0),

@@ -1,7 +1,7 @@
 """Figures with matplotlib (Agg, no pyplot state): force chains of a frame, phi and Z against P,
 and helpers that draw the paper's Figs. 2-5 on a given Axes so that the studies compose them.
 
-matplotlib is imported inside the functions (about 0.5 s), never at package import.
+matplotlib is imported inside the functions (its import is slow), never at package import.
 """
 
 from __future__ import annotations

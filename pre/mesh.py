@@ -328,7 +328,7 @@ def disk_mesh_resolution(n_elements: int) -> tuple[int, float]:
     mesh size is ``mesh_size`` ~ 6 / n_segments (0.955 x the boundary segment length). The
     first guess inverts the measured N ~ 0.2 n^2 + 0.5 n; a short walk in ``n`` then brackets
     the target, and for coarse meshes where counts jump a few mesh-size factors within
-    +-20 % are tried. Each trial meshes once (a few ms to ~0.1 s); the result is cached.
+    +-20 % are tried. Each trial meshes once; the result is cached.
     """
     target = _check_n_elements(n_elements)
     n0 = (-_COUNT_B + math.sqrt(_COUNT_B**2 + 4.0 * _COUNT_A * target)) / (2.0 * _COUNT_A)

@@ -34,14 +34,14 @@ RIGID, SOFT = "rigid", "soft"
 
 # Numerical settings of the quasi-static compaction, "table.key" -> value, in reduced units
 # (<d> = 1, rho = 1, E = 1; time unit <d> sqrt(rho/E)). theta = 1 makes a step nearly an implicit
-# static step. h and the Newton tolerance (on the position correction, in <d>), measured on the
-# stage P/E 0.1 -> 0.3 of 30 soft disks (benchmarks/results/mixture_settings.md): h = 0.5 with
-# 1e-5 takes 12 s, 1 step cut; with 1e-6, 92 s and 68 cuts; h = 1 with 1e-6, 176 s and 147 cuts;
-# the equilibrated phi moves by 4e-5 between 1e-5 and 1e-6 (the stage's own tolerance is 1e-4).
-# Wall damping with terminal inertial number 1e-2 (measured on 40-disk mixtures) moves the walls
-# much faster than 1e-3 toward the next equilibrium, and a wall force balance of 1 % avoids the
-# slow creep of the box shape that kept a 1e-3 balance unmet; a stage still ends only when
-# I < 1e-4.
+# static step. h and the Newton tolerance (on the position correction, in <d>): on a
+# high-pressure stage of 30 soft disks, h = 0.5 with 1e-5 is the cheapest setting tried that
+# cuts almost no step, and it moves the equilibrated phi by less than the stage's own tolerance
+# (1e-4) from 1e-6; a larger h or a tighter tolerance costs more cuts and time
+# (benchmarks/results/mixture_settings.md). Wall damping with terminal inertial number 1e-2
+# moves the walls toward the next equilibrium much sooner than 1e-3, and a wall force balance
+# of 1e-2 avoids the slow creep of the box shape that kept a 1e-3 balance unmet (40-disk
+# mixtures, benchmarks/results/design_figures.md); a stage still ends only when I < 1e-4.
 QUASI_STATIC = {
     "solver.time_step": 0.5, "solver.theta": 1.0, "solver.nlgs_tolerance": 1e-4, "solver.nlgs_max_sweeps": 2000,
     "solver.newton_tolerance": 1e-5, "solver.newton_max_iterations": 25,

@@ -39,7 +39,7 @@ def neo_hookean_material(element: str = "T3", volumetric: str = "standard", youn
     one-point T3 elements). Measured for T6 (studies/single_particle/README.md, "The best T6
     disk near 92 elements"): the standard term is the closer of the two to the converged
     single-particle curve at every mesh of about 92 elements, and it carries soft mixtures to
-    P/E = 1, where mean-dilatation disks drift to pointwise J/J_ref of 0.5–1.6 and stop."""
+    P/E = 1, where mean-dilatation disks drift far from J/J_ref = 1 pointwise and stop."""
     if element not in ("T3", "T6"):
         raise ValueError(f"element: expected 'T3' or 'T6', got {element!r}")
     return {"kind": "neo_hookean", "density": float(density), "young": float(young),

@@ -10,8 +10,8 @@ step tends to an implicit static step with contact), h = 10, walls of the disk's
 damping; a stage is equilibrated when φ changes by less than 1e-5 (relative) over
 ``check_every`` = 2 steps and the walls' inertial number is below 1e-4. The disk's rigid
 rotation is held (``solver.hold_rotation``): nothing else holds it between frictionless walls,
-and the compressive loads make it unstable; free, the disk rolls by 20-30 degrees one way or
-the other depending on h, and φ with it by up to 6e-4 (studies/single_particle/README.md).
+and the compressive loads make it unstable; free, the disk rolls one way or the other
+depending on h, and φ with it (studies/single_particle/README.md).
 """
 
 from __future__ import annotations
@@ -22,9 +22,8 @@ import numpy as np
 
 # The default soft disk: T6, standard volumetric term, a target of 100 triangles (101: 21
 # boundary segments). Measured against the converged refinement (studies/single_particle/README.md,
-# "The best T6 disk near 92 elements"): within 0.0015 in phi_p at every stage up to P/E = 0.4
-# (0.0018 with the rotation held),
-# where the paper's 92 triangles (20 segments) are 0.0057 off: with a number of segments divisible
+# "The best T6 disk near 92 elements"): several times closer in phi_p at every stage up to
+# P/E = 0.4 than the paper's 92 triangles (20 segments): with a number of segments divisible
 # by 4 each wall presses a face and boundary nodes join the contact in symmetric pairs, so the curve
 # climbs in larger stairs.
 ELEMENTS = 100

@@ -22,13 +22,12 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
 - node-disk ``(g, d)``, d a local rigid-disk index: gap = |x_d - x_g| - r_d, n = (x_d - x_g)/|.|;
   dofs (node x, y, disk x, y, rotation); the disk's contact point is x_d - r_d n. Only the
   nodes are kept out of the disk: where a soft body wraps around it, the disk's arc passes
-  into the body's polygon between the nodes pressed on it (post.measures' rigid overlap: 1 %
-  of the box in a T3 mixture at P/E = 1), and at high pressure a disk can wedge through a
-  stretched boundary segment into the body (1500-disk T3 mixtures at P/E = 1: disks 1.5–2
-  segment lengths deep; frictionless ones fail there on the elements it inverts;
-  benchmarks/experiments/overlaps.py lists them). The scene's ``solver.rigid_soft_rows =
-  "nodes_and_segments"`` adds the segment-disk rows below, which keep the disk off the
-  segments too.
+  into the body's polygon between the nodes pressed on it (post.measures' rigid overlap), and
+  at high pressure a disk can wedge through a stretched boundary segment into the body, deep
+  enough in frictionless mixtures to invert elements (benchmarks/experiments/README.md,
+  studies/mixture_compaction/README.md; benchmarks/experiments/overlaps.py lists them). The
+  scene's ``solver.rigid_soft_rows = "nodes_and_segments"`` adds the segment-disk rows below,
+  which keep the disk off the segments too.
 - segment-disk ``(g, d)``, g the loop node that starts a boundary segment (the segment g -> its
   next loop node), d a local rigid-disk index: the disk against the segment's interior, which
   node-disk rows cannot see (a disk pressed into a soft boundary between two nodes would
@@ -42,20 +41,17 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   they cost (benchmarks/experiments/README.md): unlike the node-disk gap, which is convex in
   the positions so that its linearisation over a step can only under-predict it, this gap is
   not: a segment that turns by an angle a within a step brings it closer than predicted by
-  about r_d a² / 2. On the 144-disk T6 mixture at P/E = 0.1 the half-edges under pressed
-  disks turn back and forth by 0.04–0.1 rad at every step (a period-2 oscillation), every step
-  starts with a few hundred rows 1.5–2e-3 inside (node-disk rows: 3e-5) that the next step
-  pushes out, and the packing creeps: a stage does not end. With T3 there is no such
-  oscillation, but the 144-disk program takes twice the steps (657 against 324).
-  benchmarks/experiments/segment_gap_linearisation.py and benchmarks/experiments/README.md have the
-  measurements. What they buy: at P/E = 1 no overlap of rigid and soft bodies (3e-5 of the box
-  against 4.8e-3) and no wedged disk, where frictionless T3 mixtures with rigid disks fail with
-  node-disk rows alone (1500 disks: kappa = 0.2 and 0.5 failed at P/E = 1, kappa = 0.8 had
-  disks two segment lengths deep). What they cost in accuracy on a coarse mesh: the disk cannot sink
-  into a straight segment until both its nodes move, so a 20-node boundary is stiffer against
-  it than the body it stands for; on the 144-disk mixture at P/E = 1 φ is 0.010–0.012 below the
-  value both formulations approach as the mesh is refined, where node rows' φ less their
-  overlap is within 0.005 (benchmarks/experiments/contact_rows_refinement.py).
+  about r_d a² / 2. With T6 the half-edges under pressed disks turn back and forth at every
+  step (a period-2 oscillation), every step starts with many rows inside by about a half-edge's
+  sagitta that the next step pushes out, and the packing creeps: a stage does not end. With T3
+  there is no such oscillation, but a program takes more steps. What they buy: at high
+  pressure next to no overlap of rigid and soft bodies and no wedged disk, where frictionless T3
+  mixtures with rigid disks can fail with node-disk rows alone. What they cost in accuracy on a
+  coarse mesh: the disk cannot sink into a straight segment until both its nodes move, so a
+  20-node boundary is stiffer against it than the body it stands for, and φ comes out below
+  the value both formulations approach as the mesh is refined, farther than node rows' φ less
+  their overlap. The measurements of all this are in benchmarks/experiments/README.md
+  (benchmarks/experiments/segment_gap_linearisation.py, contact_rows_refinement.py).
 - node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
   kernel updates in place (it walks along l's loop to the segment at minimum distance, then
   keeps it if it faces g, see ``facing_segment``);
@@ -211,9 +207,9 @@ def facing_segment(px, py, g, x, loop_nodes, start, n_loop, s, loop_neighbours):
     edge, e.g. the bottom edges of two disks side by side meeting at their corners). Against
     that segment, each node is held on the wrong side of the other body: two contacts with
     parallel normals that press the two corners into each other, which with friction can lock
-    (seen in a 1500-disk mixture at P/E = 1: impulses 190 times the body's median, whatever the
-    step size). The neighbouring segment through the shared corner faces the node and gives
-    the separating normal."""
+    (seen in a large mixture at high pressure, whatever the step size:
+    benchmarks/results/corner_contacts.md). The neighbouring segment through the shared corner
+    faces the node and gives the separating normal."""
     a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
     if _faces(x, g, loop_neighbours, x[a, 0], x[a, 1], x[b, 0], x[b, 1]):
         return s

@@ -19,7 +19,7 @@ Algorithm (after Davis' LDL package, ACM TOMS 2005; Liu's row-subtree characteri
   as no pivot is zero.
 - Compliance: E^T A^-1 E = Y^T D^-1 Y, Y = L^-1 P E. A unit vector at new index s has L^-1 e_s
   nonzero only on the etree path from s to its root, and two such paths share a common suffix,
-  so each entry is a short dot product on that suffix (several times faster than m full
+  so each entry is a short dot product on that suffix (faster than m full
   solves: benchmarks/results/design_figures.md).
 
 The orderings kept (mmd for T3, mmd on the node graph for T6) are the ones with the least fill

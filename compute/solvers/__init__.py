@@ -29,9 +29,10 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
   problems on which NLGS needs tens of thousands of sweeps, so its solves end above tolerance at
   their sweep limit; with the interior-point fallback the rigid_jamming study's default runs end
   COMPLETE in less time, but the fallback's sparse factorisations grow faster than a sweep:
-  at 500 disks the run costs more than with NLGS (and ends COMPLETE where NLGS does not), at
-  1500 disks several times more (and still leaves steps above tolerance). On one soft body the point Gauss–Seidel contracts
-  slowly, the body's contacts being coupled through its compliance, while the block is one
+  on larger packings the run costs more than with NLGS, the more so the larger (it ends
+  COMPLETE where NLGS does not, or leaves fewer steps above tolerance;
+  benchmarks/results/contact_problems.md, "Rigid runs"). On one soft body the point
+  Gauss–Seidel contracts slowly, the body's contacts being coupled through its compliance, while the block is one
   Newton solve. In soft mixtures the slow coupling is between bodies, through the contact
   network, where blocks take as many sweeps as points at a higher cost per sweep; but while a
   mixture compacts, ``nlgs`` can stall where ``block`` converges (:mod:`compute.solvers.nlgs_then`),

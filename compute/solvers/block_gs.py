@@ -3,8 +3,9 @@ together, by a semismooth Newton method on the Alart–Curnier function; Gauss�
 blocks and the remaining single contacts (rigid bodies, walls).
 
 Why: the contacts of one soft body are coupled through its compliance M̂_b⁻¹, strongly: the
-point Gauss–Seidel of :mod:`compute.solvers.nlgs` contracts by only 0.96–0.985 per sweep there
-(300–1200 sweeps to 1e-8), while a Newton method on the block converges in a few iterations.
+point Gauss–Seidel of :mod:`compute.solvers.nlgs` contracts slowly there (hundreds of sweeps per
+solve; benchmarks/results/design_figures.md), while a Newton method on the block converges in
+a few iterations.
 
 Blocks: a contact belongs to the dense compliance block of the first of its dofs that lies in
 one (the node side of a node–segment contact); contacts without such a dof are single blocks,

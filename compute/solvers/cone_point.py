@@ -27,8 +27,9 @@ Stewart–Trinkle system before its reduction and the same count after it. The p
 z = w = rms(b) at every outer step.
 
 Outer iteration: a solution of the LCP with s = μ |u_t| is a Coulomb solution, so
-s ← (1 − θ) s + θ μ |u_t(s)| (``damping`` θ, 1 by default: undamped, the error fell several
-times faster per step on the rigid packings measured). The first s is μ |u_t| of the warm-start impulses'
+s ← (1 − θ) s + θ μ |u_t(s)| (``damping`` θ, 1 by default: undamped, the error fell fastest
+per step on the rigid packings tried; benchmarks/results/design_figures.md). The first s is
+μ |u_t| of the warm-start impulses'
 velocities, for zero impulses of the free velocity: with s = 0 a cone LCP can have no solution
 (a self-stress inside the cones whose cost (q + s e_n)ᵀ r is negative, seen on the rank-deficient
 test problems with overlapping gaps), and its interior point then runs the impulses to infinity,
@@ -68,8 +69,8 @@ STALL = 0.5  # the fixed point has stalled when an outer step does not divide th
 LM_DAMPING = 1e-3  # Levenberg–Marquardt's λ over |F|
 ARMIJO = 1e-4  # sufficient decrease of |F|² of a Levenberg–Marquardt step
 ARMIJO_HALVINGS = 30
-# Both Newton matrices are symmetric positive definite: a symmetric ordering, no pivoting (on the
-# 1500-disk packing 2.5 to 3.5 times faster than COLAMD: benchmarks/results/contact_problems.md).
+# Both Newton matrices are symmetric positive definite: a symmetric ordering, no pivoting (faster
+# factorisations than COLAMD's: benchmarks/results/contact_problems.md).
 SYMMETRIC = {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
 
 

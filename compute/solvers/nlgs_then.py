@@ -12,8 +12,8 @@ takes over from its iterate:
   that needs tens of thousands of sweeps, while an interior point's iterations do not grow with
   the packing. NLGS hands over when its last ``STALL_WINDOW`` sweeps, kept up, would not reach
   the tolerance within its budget, so that the fallback is paid only where NLGS would miss: its
-  sparse factorisations cost hundreds of sweeps on a 200-disk packing and thousands on a
-  1500-disk one, so no fixed threshold in sweeps suits both. With soft bodies the fallback is
+  sparse factorisations cost the more sweeps the larger the packing, so no fixed threshold in
+  sweeps suits every packing. With soft bodies the fallback is
   the Stewart–Trinkle interior point (:mod:`compute.solvers.interior_point`); without, that one
   and then the cone fixed point (:mod:`compute.solvers.cone_point`): the first settles most
   solves of a packing on its way to jamming, the second converges on the jammed ones, where the

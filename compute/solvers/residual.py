@@ -10,9 +10,9 @@ P_K the projection on the (2D, polyhedral) Coulomb cone and ρ_c > 0 any scale; 
 makes ρ ū an impulse. The error of a solution is ‖f‖ / ‖r‖ over all contacts (2-norms): it is
 zero exactly at a solution, and unlike the change of r between two Gauss–Seidel sweeps it does
 not understate the error where the iteration converges slowly. Being one norm over all contacts, it
-bounds the violation of the packing, not of each contact: in a 144-disk T3 mixture at P/E = 1
-(about 1100 active contacts) 36 rigid-disk-against-segment rows stay 1–2.5e-3 inside from step
-to step at a tolerance of 1e-4 and are pushed out at 1e-6 (benchmarks/experiments/README.md).
+bounds the violation of the packing, not of each contact: among the many active contacts of a
+large mixture a few rows can stay inside, from step to step, by more than the tolerance suggests,
+and a tighter tolerance pushes them out (benchmarks/experiments/README.md, segment-disk rows).
 
 Measures (:class:`Measure`, a scene's ``solver.contact_error``):
 
