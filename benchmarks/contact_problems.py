@@ -4,7 +4,7 @@
 contact solve of the first step of stage ``--stage`` (or of step ``--step``) as a .npz file,
 cold (impulses zero), then stops the run. ``compare``: solves saved problems from zero impulses
 with each solver to each tolerance and prints one JSON line per solve: iterations, seconds,
-the natural-map error (compute.solvers.residual, the stopping test) and the velocity error
+the natural-map error (compute.contact.residual, the stopping test) and the velocity error
 (natural-map error in velocity units relative to the free velocity's scale), both
 recomputed from the returned impulses.
 

@@ -72,7 +72,7 @@ class Solver:
     time_step: float
     theta: float
     nlgs_tolerance: float
-    contact_error: str  # the error measure of nlgs_tolerance (compute.solvers.residual.Measure)
+    contact_error: str  # the error measure of nlgs_tolerance (compute.contact.residual.Measure)
     penetration_bound: float  # in mean diameters, 0: none
     nlgs_max_sweeps: int
     relaxation: float

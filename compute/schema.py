@@ -144,7 +144,7 @@ SOLVER = (
     _positive("time_step", "time step h", "time"),
     Key("theta", "float", "θ of the θ-method (1/2: trapezoidal, 1: backward Euler)", low=0.5, high=1.0),
     _tolerance("nlgs_tolerance", "contact solve: the error of contact_error at which it stops", low=1e-15),
-    Key("contact_error", "str", "the contact solve's error (compute/solvers/residual.py): impulse |f| / |r|, the "
+    Key("contact_error", "str", "the contact solve's error (compute/contact/residual.py): impulse |f| / |r|, the "
         "velocity error relative to the velocities the impulses make over the packing (velocity), or at the worst "
         "contact (velocity_max)", options=("impulse", "velocity", "velocity_max"), default="impulse"),
     Key("penetration_bound", "float", "contact solve: also no predicted overlap at the end of a step above this, in "

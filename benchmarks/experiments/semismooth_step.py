@@ -89,7 +89,7 @@ def rotation_columns(model, n: int):
 def make_solve_step(options):
     """A replacement of compute.stepping.newton.solve_step (same signature and results)."""
     from compute.errors import StepFailure
-    from compute.solvers import SolveReport
+    from compute.solvers.report import SolveReport
     from compute.stepping import newton
 
     def solve_step(model, contacts, v_minus, h, theta, solver, tol, max_iterations, stats, misses_fail=True):

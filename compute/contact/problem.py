@@ -19,7 +19,7 @@ import numpy as np
 
 from compute.contact.compliance import Compliance, block_delassus, delassus_blocks
 from compute.contact.rows import ContactRows, generalised_impulse
-from compute.solvers.residual import natural_map_error, velocity_error
+from compute.contact.residual import natural_map_error, velocity_error
 
 
 @dataclass
@@ -74,13 +74,13 @@ class ContactProblem:
         return v
 
     def error(self, v: np.ndarray) -> float:
-        """Natural-map error (:mod:`compute.solvers.residual`) of the impulses with velocities v (n_dofs,)."""
+        """Natural-map error (:mod:`compute.contact.residual`) of the impulses with velocities v (n_dofs,)."""
         return natural_map_error(self.dof, self.hn, self.ht, self.W, self.gap_term, self.mu, self.impulse,
                                  v[self.compliance.order])
 
     def velocity_error(self, v: np.ndarray) -> tuple[float, float]:
         """(packing, worst contact) natural-map error in velocity units
-        (:func:`compute.solvers.residual.velocity_error`) with velocities v (n_dofs,)."""
+        (:func:`compute.contact.residual.velocity_error`) with velocities v (n_dofs,)."""
         o = self.compliance.order
         return velocity_error(self.dof, self.hn, self.ht, self.W, self.gap_term, self.mu, self.impulse, v[o],
                               self.v_free[o])

@@ -1,8 +1,8 @@
 """Contact solvers: each takes a :class:`compute.contact.problem.ContactProblem` and returns the
 end-of-step velocities, with the impulses written into ``problem.impulse``.
 
-The interface is one method, ``solve(problem) -> SolveReport``; a solver knows nothing of body
-kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
+The interface is one method, ``solve(problem) -> SolveReport`` (:mod:`compute.solvers.report`); a
+solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
 
 - ``"nlgs"``: :class:`~compute.solvers.nlgs.NLGS`, nonlinear Gauss–Seidel with the exact local 2D
   Signorini–Coulomb solution per contact;
@@ -39,30 +39,18 @@ kinds. Chosen by the scene's ``solver.contact`` (:func:`for_scene`):
   hence ``nlgs_block``; ``nlgs_ip`` there is slower at the default tolerance (a cold interior
   point per fallback, at any Newton iteration) and pays off only at tight ones. Figures: benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
 
-All stop on the error of :mod:`compute.solvers.residual` that the scene's
+All stop on the error of :mod:`compute.contact.residual` that the scene's
 ``solver.contact_error`` names (their ``measure``), with its optional penetration bound, and
 report it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 
 MAX_INTERIOR_POINT_ITERATIONS = 200  # an interior point that needs more has stalled
 AUTO_FALLBACK_BODIES = 500  # auto: rigid scenes up to this many movable bodies get nlgs_ip (module docstring)
-
-
-@dataclass
-class SolveReport:
-    """``v`` (n_dofs,) velocities v_free + M̂⁻¹ H r on the dofs contacts touch (v_free elsewhere);
-    ``iterations`` (sweeps for NLGS) and the solver's ``residual`` at its stop."""
-
-    v: np.ndarray
-    iterations: int
-    residual: float
 
 
 def for_model(settings, model):
@@ -80,7 +68,7 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     from compute.solvers.interior_point import InteriorPoint
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
-    from compute.solvers.residual import Measure
+    from compute.contact.residual import Measure
 
     measure = Measure(settings.contact_error, settings.penetration_bound * diameter)
     tol, sweeps = settings.nlgs_tolerance, settings.nlgs_max_sweeps

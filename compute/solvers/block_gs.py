@@ -23,7 +23,7 @@ frictionless: Φ_t = r_t), with a backtracking line search on |Φ|² (least squa
 Jacobian is singular: redundant contacts). A block the Newton method does not settle in
 ``BLOCK_ITERATIONS`` falls back to point Gauss–Seidel sweeps on its contacts.
 
-Stopping: the natural-map error of all contacts (:mod:`compute.solvers.residual`) at most
+Stopping: the natural-map error of all contacts (:mod:`compute.contact.residual`) at most
 ``tolerance``, checked after every sweep. A problem of one block stops after one sweep whatever
 its error (its block solve was the whole solve: repeating a failed one would not help, and each
 costs up to BLOCK_ITERATIONS Newton steps and FALLBACK_SWEEPS point sweeps); a miss shows as
@@ -39,9 +39,9 @@ import numpy as np
 
 from compute.contact.compliance import add_contact_impulse, block_delassus
 from compute.contact.rows import local_velocity
-from compute.solvers import SolveReport
+from compute.solvers.report import SolveReport
 from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
-from compute.solvers.residual import Measure, contact_error, relative, squared_error
+from compute.contact.residual import Measure, contact_error, relative, squared_error
 
 BLOCK_ITERATIONS = 30
 FALLBACK_SWEEPS = 200
@@ -152,7 +152,7 @@ def _lu_solve(A, b):
 
 @numba.njit(cache=True)
 def _block_error(W, b, mu, r):
-    """Natural-map error ‖f‖ / ‖r‖ of the block alone (compute.solvers.residual)."""
+    """Natural-map error ‖f‖ / ‖r‖ of the block alone (compute.contact.residual)."""
     u = W @ r + b
     size = np.abs(W) @ np.abs(r) + np.abs(b)  # magnitudes of the terms of u
     num = 0.0
@@ -214,7 +214,7 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                    offset, values, kind, tol, bound, max_sweeps):
     """Solve the contact problem in place (module docstring); rows over packed dofs, v (n,)
     packed velocities that include the warm-start impulses, ``v_free`` (n,); the error measure
-    (kind, tol, bound) of :meth:`compute.solvers.residual.Measure.codes`. Returns (sweeps, error)."""
+    (kind, tol, bound) of :meth:`compute.contact.residual.Measure.codes`. Returns (sweeps, error)."""
     nb = bstart.shape[0] - 1
     error = contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
     if error <= tol:

@@ -7,7 +7,7 @@ redundant, sticking contacts) its error stalls near 1e-4 (benchmarks/results/con
 
 Formulation. The Signorini–Coulomb law of contact c is, in De Saxcé's form,
 K* ∋ ū_c ⊥ r_c ∈ K_c with ū = (ũ_n + μ |u_t|, u_t) and K = {|r_t| ≤ μ r_n}
-(:mod:`compute.solvers.residual`). With the shift s_c in place of μ |u_t| held fixed it is the
+(:mod:`compute.contact.residual`). With the shift s_c in place of μ |u_t| held fixed it is the
 optimality system of the convex quadratic programme min ½ rᵀ W r + (q + s e_n)ᵀ r over the
 cones, u = W r + q. In 2D the cone has two edges, r_c = √ρ_c (a_c e⁺_c + b_c e⁻_c),
 e± = (1, ±μ_c), a, b ≥ 0 (a frictionless contact: r_c = √ρ_c a_c (1, 0)), and the programme is
@@ -57,11 +57,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from compute.contact.delassus import Delassus
-from compute.solvers import SolveReport
+from compute.solvers.report import SolveReport
 from compute.solvers.interior_point import (REGULARISATION, _variables, diagonal_position, local_free_velocity,
                                             predictor_corrector, reduced_pattern, solution_error)
 from compute.solvers.nlgs import apply_impulses
-from compute.solvers.residual import Measure, local_contact_error
+from compute.contact.residual import Measure, local_contact_error
 
 INNER = 0.1  # an outer step's LCP is solved to this fraction of the tolerance (its own error)
 PROXIMAL = 1e-6  # ε of the proximal term ε/2 |r - r̄|²_P, relative to W_nn (module docstring)
@@ -160,7 +160,7 @@ def solve_cone(W: Delassus, q: np.ndarray, mu: np.ndarray, codes: tuple, warm: n
                outer: int, damping: float, polish: int = 0):
     """Impulses r (nc, 2), iterations (interior point and Levenberg–Marquardt), error of
     u = W r + q (module docstring); ``codes`` the measure (kind, tol, bound) of
-    :meth:`compute.solvers.residual.Measure.codes`, ``warm`` (nc, 2) impulses whose velocities
+    :meth:`compute.contact.residual.Measure.codes`, ``warm`` (nc, 2) impulses whose velocities
     give the first shift (none if zero)."""
     tol = codes[1]
     nc = len(W)

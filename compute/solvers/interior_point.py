@@ -33,7 +33,7 @@ crossover solves the law on it exactly (M_PP z_P = −b_P, the others zero; one 
 few refinement steps for redundant contacts), followed by a few primal-dual active-set steps
 where that set was not quite right; kept if its error is smaller.
 
-Stopping: the natural-map error of :mod:`compute.solvers.residual` at most ``tolerance``,
+Stopping: the natural-map error of :mod:`compute.contact.residual` at most ``tolerance``,
 evaluated on the impulses at every iteration, or ``max_iterations``; the best impulses found
 are returned with their error (a miss shows as an error above the tolerance).
 """
@@ -48,9 +48,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from compute.contact.delassus import Delassus
-from compute.solvers import SolveReport
+from compute.solvers.report import SolveReport
 from compute.solvers.nlgs import apply_impulses
-from compute.solvers.residual import Measure, local_contact_error
+from compute.contact.residual import Measure, local_contact_error
 
 STEP_TO_BOUNDARY = 0.99  # fraction of the step to the boundary of z, w > 0
 SHORT_STEP = 0.1  # a corrector step shorter than this is replaced by a centring step
@@ -88,7 +88,7 @@ def local_free_velocity(problem) -> np.ndarray:
 
 def solve_lcp(W: Delassus, q: np.ndarray, mu: np.ndarray, codes: tuple, max_iterations: int):
     """Impulses r (nc, 2), iterations, error of u = W r + q (module docstring); ``codes`` the
-    measure (kind, tol, bound) of :meth:`compute.solvers.residual.Measure.codes`."""
+    measure (kind, tol, bound) of :meth:`compute.contact.residual.Measure.codes`."""
     tol = codes[1]
     nc = len(W)
     if nc == 0:
@@ -308,7 +308,7 @@ def _impulses(z, var0, rho):
 
 
 def solution_error(codes, wnn, u, r, mu, q):
-    """The error (compute.solvers.residual) of impulses r (nc, 2) from local velocities u (nc, 2)
+    """The error (compute.contact.residual) of impulses r (nc, 2) from local velocities u (nc, 2)
     = W r + q."""
     size = np.abs(q).sum(axis=1) + np.abs(u).sum(axis=1)
     return local_contact_error(*codes, wnn, u, u - q, r, mu, size)

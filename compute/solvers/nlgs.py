@@ -9,7 +9,7 @@ end-of-step gap (Moreau–Jean with a gap term, no drift):
 
 i.e. Signorini on ũ_n = u_n + g̃ / (h θ); Coulomb on u_t: |r_t| ≤ μ r_n, sliding opposite u_t.
 Stopping: the true error of the solution, the natural-map residual ‖f‖ / ‖r‖ of
-:mod:`compute.solvers.residual`, at most ``tol``. It is evaluated (one pass over the contacts,
+:mod:`compute.contact.residual`, at most ``tol``. It is evaluated (one pass over the contacts,
 no update) only after sweeps whose relative change sqrt(Σ|Δr|²) / sqrt(Σ|r|²) (LMGC90's quadratic
 norm) is already below ``tol``: that change understates the error by about 1 / (1 - ρ) where the
 sweeps contract by ρ close to 1, so alone it stops too early.
@@ -34,8 +34,8 @@ import numpy as np
 
 from compute.contact.compliance import add_compliance, add_contact_impulse
 from compute.contact.rows import generalised_impulse, local_velocity
-from compute.solvers import SolveReport
-from compute.solvers.residual import Measure, contact_error
+from compute.solvers.report import SolveReport
+from compute.contact.residual import Measure, contact_error
 
 
 @dataclass(frozen=True)
@@ -96,7 +96,7 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, star
     mu (nc,); r (nc, 2) impulses (warm start in, solution out); v (n,) packed velocities that
     already include the warm-start impulses (v = v_free + M̂⁻¹ H r), ``v_free`` (n,); the
     compliance arrays of :meth:`compute.contact.compliance.Compliance.arrays`; the error measure
-    (kind, tol, bound) of :meth:`compute.solvers.residual.Measure.codes`. Returns (sweeps, error
+    (kind, tol, bound) of :meth:`compute.contact.residual.Measure.codes`. Returns (sweeps, error
     at the stop); stalled (module docstring) if the error is above tol before max_sweeps.
     """
     best = np.inf  # smallest error of the stall checks

@@ -30,12 +30,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from compute.solvers import SolveReport
+from compute.solvers.report import SolveReport
 from compute.solvers.block_gs import BlockGS
 from compute.solvers.cone_point import ConePoint
 from compute.solvers.interior_point import InteriorPoint
 from compute.solvers.nlgs import NLGS
-from compute.solvers.residual import Measure
+from compute.contact.residual import Measure
 
 STALL_WINDOW = 50  # sweeps between NLGS's stall checks
 FALLBACK_IP_ITERATIONS = 40  # nlgs_ip: about twice what the interior point needs where it converges

@@ -53,7 +53,7 @@ import numpy as np
 from compute.contact.compliance import Compliance
 from compute.contact.problem import ContactProblem
 from compute.errors import StepFailure
-from compute.solvers import SolveReport
+from compute.solvers.report import SolveReport
 from compute.timing import TIMES
 
 ANDERSON = 4

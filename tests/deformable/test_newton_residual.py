@@ -20,7 +20,7 @@ import pytest
 from compute.contact.problem import ContactProblem
 from compute.contact.compliance import Compliance
 from compute.contact.rows import generalised_impulse
-from compute.solvers.residual import natural_map_error
+from compute.contact.residual import natural_map_error
 from tests.deformable import scenes
 
 NEWTON_TOL, CONTACT_TOL = 1e-9, 1e-3

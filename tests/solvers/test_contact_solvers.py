@@ -1,6 +1,6 @@
 """The contact solvers against an independent answer: a textbook Lemke pivoting solver of the
 2D frictional problem written as an LCP (tests/solvers/lemke.py), on random small problems;
-and the natural-map error (compute.solvers.residual) against the oracle's exact solutions."""
+and the natural-map error (compute.contact.residual) against the oracle's exact solutions."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from compute.solvers.cone_point import ConePoint
 from compute.solvers.interior_point import InteriorPoint
 from compute.solvers.nlgs import NLGS
 from compute.solvers.nlgs_then import NLGSThen
-from compute.solvers.residual import Measure, natural_map_error
+from compute.contact.residual import Measure, natural_map_error
 from tests.solvers.lemke import frictional_lcp, lemke, solve_contact
 from tests.solvers.problems import dense_form, random_problem
 
@@ -203,7 +203,7 @@ def _nearest_on_cone(x, mu):
 def test_cone_projection_is_the_nearest_point(mu):
     """Including the frictionless cone (a half-line) and points on the axes (a node–wall contact
     has a zero tangent row, so x_t = 0 exactly)."""
-    from compute.solvers.residual import project_cone
+    from compute.contact.residual import project_cone
 
     rng = np.random.default_rng(7)
     points = [np.array(p, float) for p in ([-1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, -1.0], [0.0, 0.0])]
@@ -214,7 +214,7 @@ def test_cone_projection_is_the_nearest_point(mu):
 
 def test_open_frictionless_contact_without_tangent_row_has_no_error():
     """r = 0 on an open contact whose tangent row is zero (node–wall) is the solution: error 0."""
-    from compute.solvers.residual import local_error
+    from compute.contact.residual import local_error
 
     assert local_error(5.0, 0.2, 0.0, 0.0, 0.0, 0.0) == (0.0, 0.0)
     assert local_error(5.0, -0.2, 0.0, 0.0, 0.0, 0.0)[0] == pytest.approx(-0.04)  # closing, r = 0: -ρ ũ_n
@@ -307,7 +307,7 @@ def test_velocity_error_is_the_velocity_of_the_wrong_impulse():
 def velocity_errors_by_hand(p, r):
     """(packing, worst-contact) velocity errors of impulses r (nc, 2), and the largest predicted
     overlap h θ max(-ũ_n), from the dense form: u = W r + b, the Coulomb cone projection written
-    out, e_c = W_nn f_c, w = W r (compute.solvers.residual's module docstring)."""
+    out, e_c = W_nn f_c, w = W r (compute.contact.residual's module docstring)."""
     _, _, W, b = dense_form(p)
     w = (W @ r.ravel()).reshape(-1, 2)
     u = w + b.reshape(-1, 2)
