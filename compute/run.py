@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from compute import files, output, output_folder, stall, summary, wall_crossing
+from compute import files, output, output_folder, schema, stall, summary, wall_crossing
 from compute.threads import ThreadsFile
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
@@ -128,7 +128,8 @@ class Run:
         return self.model.initial_state()
 
     def _check_same_scene(self) -> None:
-        """A run resumes only the scene it was started from (its copy OUT/scene.toml)."""
+        """A run resumes only the scene it was started from (its copy OUT/scene.toml), both read
+        in the current schema version (a run started under an older one resumes)."""
         started = self.out / "scene.toml"
         if not files.is_file(started, OutputFolderError):
             return
@@ -136,6 +137,7 @@ class Run:
             before = tomllib.loads(files.read_text(started, OutputFolderError))
         except tomllib.TOMLDecodeError as exc:
             raise OutputFolderError(started, "<syntax>", "the copy of the scene's scene.toml", str(exc)) from None
+        before = schema.migrate(started, before, OutputFolderError)
         if before != self.scene.raw:
             changed = sorted(_changed_keys(before, self.scene.raw))
             raise OutputFolderError(started, changed[0], f"the parameters of the scene being resumed "

@@ -4,7 +4,8 @@ Every table and key is declared once in :mod:`compute.schema` (type, unit, range
 docs/FORMATS.md shows it). Every field that changes physics is required; optional keys are
 switches and numerical settings with the defaults the schema states. Unknown keys are errors.
 Every error is a :class:`~compute.errors.SceneError` naming the file, the field and what was
-expected.
+expected. A file of an older ``schema_version`` is read in the current layout
+(:func:`compute.schema.migrate`).
 """
 
 from __future__ import annotations
@@ -66,13 +67,14 @@ class Loading:
 
 @dataclass(frozen=True)
 class Solver:
-    """Time-stepping and contact-solver settings (``nlgs_tolerance`` and ``nlgs_max_sweeps`` hold
-    for whichever contact solver ``contact`` chooses)."""
+    """Time-stepping and contact-solver settings (``contact_tolerance`` and ``nlgs_max_sweeps`` hold
+    for whichever contact solver ``contact`` chooses; ``contact_tolerance`` for the Newton loop's
+    contact test too)."""
 
     time_step: float
     theta: float
-    nlgs_tolerance: float
-    contact_error: str  # the error measure of nlgs_tolerance (compute.contact.residual.Measure)
+    contact_tolerance: float
+    contact_error: str  # the error measure of contact_tolerance (compute.contact.residual.Measure)
     penetration_bound: float  # in mean diameters, 0: none
     nlgs_max_sweeps: int
     relaxation: float
@@ -114,7 +116,7 @@ class Scene:
     loading: Loading
     solver: Solver
     output: Output
-    raw: dict = field(repr=False, default_factory=dict)
+    raw: dict = field(repr=False, default_factory=dict)  # scene.toml as read, in the current layout (migrated)
 
     @property
     def n_bodies(self) -> int:
@@ -133,7 +135,7 @@ def read_scene(scene_dir: str | Path, bodies_outside: bool = False) -> Scene:
     resumed as a whole, and a path such as ``../../x/bodies.vtu`` breaks that silently."""
     scene_dir = Path(scene_dir)
     file = scene_dir / SCENE_FILE
-    data = read_toml(file)
+    data = schema.migrate(file, read_toml(file))
     tables = parse_parameters(file, data)
     bodies_file = scene_dir / tables["bodies"]["file"]
     if not bodies_outside and not bodies_file.resolve().is_relative_to(scene_dir.resolve()):
@@ -173,9 +175,11 @@ def read_parameters(file: str | Path, error: type[InputError] = SceneError) -> d
 
 
 def parse_parameters(file, data: dict) -> dict:
-    """The tables of a scene's parameters ``data`` (as read from ``file``), validated against
-    :mod:`compute.schema`: materials, material_names, friction, walls, loading, solver, output
-    and the raw [bodies] table. Raises SceneError naming ``file`` and the field."""
+    """The tables of a scene's parameters ``data`` (as read from ``file``; of any schema
+    version, :func:`compute.schema.migrate`), validated against :mod:`compute.schema`: materials,
+    material_names, friction, walls, loading, solver, output and the raw [bodies] table. Raises
+    SceneError naming ``file`` and the field."""
+    data = schema.migrate(file, data)
     schema.validate(file, "", data, schema.TOP, extra=("bodies", "materials", "interactions", *schema.SETTINGS))
     materials = _read_materials(file, data.get("materials"))
     bodies = schema.validate(file, "bodies.", data.get("bodies"), schema.BODIES)

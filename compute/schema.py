@@ -11,6 +11,13 @@ multiplies at most four of them (e.g. h² E / (ρ L²)), which then stays within
 the overflow and underflow of double precision (1e±308) and from denormals, so round-off stays
 relative. Tolerances lie in (0, 1); counts are integers in ``[1, 1e9]`` (0 allowed where 0
 means "none").
+
+Versions. ``schema_version`` is the layout's version; a file of an older version is migrated on
+read (:func:`migrate`: the keys renamed since, ``RENAMED``), so that a scene, or a run's copy of
+it, written before a change still runs and resumes. A key's old name in a file of the current
+version is an error naming the new one. Version 2 renamed ``solver.nlgs_tolerance`` to
+``solver.contact_tolerance``: it governs every contact solver and the Newton loop's contact test,
+not NLGS alone.
 """
 
 from __future__ import annotations
@@ -19,9 +26,11 @@ import difflib
 import math
 from dataclasses import dataclass
 
-from compute.errors import SceneError
+from compute.errors import InputError, SceneError
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+# version -> {(table, old name): new name}: the keys that version renamed (migrate)
+RENAMED = {2: {("solver", "nlgs_tolerance"): "contact_tolerance"}}
 SCALE = 1e12  # bound of every magnitude (module docstring)
 PRESSURE_OVER_YOUNG = 5.0  # largest P/E of a soft material the elements handle (compute.scene)
 TINY = 1e-12  # smallest positive scale
@@ -80,7 +89,8 @@ def _tolerance(name, doc, low=0.0, **kw) -> Key:
     return Key(name, "float", doc, low=low, high=1.0, open_low=True, **kw)
 
 
-TOP = (Key("schema_version", "int", "version of this file layout", low=SCHEMA_VERSION, high=SCHEMA_VERSION),)
+TOP = (Key("schema_version", "int", "version of this file layout (an older one is migrated on read: compute/schema.py)",
+           low=1, high=SCHEMA_VERSION),)
 
 BODIES = (
     Key("file", "str", "the bodies file, relative to the scene folder and inside it (python -m compute "
@@ -135,7 +145,7 @@ LOADING = (
     _count("check_every", "steps of the sliding window of the stage-end test (tested after every step)"),
     _count("max_steps_per_stage", "a stage ends INCOMPLETE after this many steps"),
     _count("stall_steps", "a stage that makes no progress for this many steps (its contact error above "
-           "nlgs_tolerance and not halving, φ and the walls not moving by phi_tolerance) ends the run "
+           "contact_tolerance and not halving, φ and the walls not moving by phi_tolerance) ends the run "
            "INCOMPLETE (compute/stall.py; 0: never)", low=0, default=10000),
     Key("gravity", "floats", "gravity [gx, gy]", "length / time²", low=-SCALE, high=SCALE, length=2),
 )
@@ -143,7 +153,8 @@ LOADING = (
 SOLVER = (
     _positive("time_step", "time step h", "time"),
     Key("theta", "float", "θ of the θ-method (1/2: trapezoidal, 1: backward Euler)", low=0.5, high=1.0),
-    _tolerance("nlgs_tolerance", "contact solve: the error of contact_error at which it stops", low=1e-15),
+    _tolerance("contact_tolerance", "contact solve (every solver of contact) and the Newton loop's contact test: the "
+               "error of contact_error at which it stops (schema_version 1: nlgs_tolerance)", low=1e-15),
     Key("contact_error", "str", "the contact solve's error (compute/contact/residual.py): impulse |f| / |r|, the "
         "velocity error relative to the velocities the impulses make over the packing (velocity), or at the worst "
         "contact (velocity_max)", options=("impulse", "velocity", "velocity_max"), default="impulse"),
@@ -253,8 +264,45 @@ def _type_text(k: Key) -> str:
     return {"float": "a finite number", "int": "an integer", "str": "a string", "bool": "true or false"}[k.type]
 
 
+def migrate(file, data: dict, error: type[InputError] = SceneError) -> dict:
+    """The parameters ``data`` (as read from ``file``) in the current version's layout: those of
+    a file of an older ``schema_version`` with its keys renamed since (``RENAMED``), ``data``
+    itself when it is current (or its version is not one: :func:`validate` says so). A key of an
+    old file already under its new name raises ``error``."""
+    version = data.get("schema_version") if isinstance(data, dict) else None
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version < SCHEMA_VERSION:
+        return data
+    out = dict(data)
+    for step in range(version + 1, SCHEMA_VERSION + 1):
+        for (table, old), new in RENAMED.get(step, {}).items():
+            tab = out.get(table)
+            if not isinstance(tab, dict):
+                continue
+            if new in tab:
+                raise error(file, f"{table}.{new}", f"{old}, its name in a schema_version {version} file "
+                            f"(or schema_version = {SCHEMA_VERSION})")
+            if old in tab:
+                out[table] = {(new if k == old else k): v for k, v in tab.items()}
+    out["schema_version"] = SCHEMA_VERSION
+    return out
+
+
+def renamed(name: str) -> tuple[str, int] | None:
+    """(current name, version that renamed it) of ``name`` ("key" or "table.key") if it is a
+    key's old name, else None."""
+    for version, renames in RENAMED.items():
+        for (table, old), new in renames.items():
+            if name in (old, f"{table}.{old}"):
+                return (new if name == old else f"{table}.{new}"), version
+    return None
+
+
 def unknown_key(name: str, known: list[str]) -> str:
-    """What an error on the unknown key ``name`` expects: a known key, the closest ones first."""
+    """What an error on the unknown key ``name`` expects: a known key, the closest ones first; for
+    a key's old name, its new name."""
+    if renamed(name) is not None:
+        new, version = renamed(name)
+        return f"{new} (unknown key '{name}': renamed {new} in schema_version {version})"
     close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
     hint = f"; did you mean {close[0]}?" if close else ""
     return f"a known key (unknown key '{name}'{hint}; known: {', '.join(known)})"

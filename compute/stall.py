@@ -5,7 +5,7 @@ A step of a stage makes progress when the stage's load is still being ramped
 ``nlgs_residual``) is below half the smallest since the last progress, or φ or the box area
 differs by more than ``loading.phi_tolerance`` (relative) from their values at the last
 progress. A stage is stalled after ``loading.stall_steps`` steps without progress (0: never)
-whose last contact solve ended above ``solver.nlgs_tolerance``: the run writes the stage's frame
+whose last contact solve ended above ``solver.contact_tolerance``: the run writes the stage's frame
 (not equilibrated) and ends INCOMPLETE, the diagnosis naming the stage, the contact error and
 the settings to change. (A stage whose contact solves meet their tolerance is not stalled
 whatever its packing does: its contact error is not what keeps it from ending.)
@@ -49,7 +49,7 @@ def stalled(state, scene, residual: float) -> bool:
     """The stage went ``loading.stall_steps`` steps without progress (never when it is 0) and its
     last contact error ``residual`` is above the tolerance."""
     steps = scene.loading.stall_steps
-    return steps > 0 and state.stage_steps - state.stall_mark >= steps and residual > scene.solver.nlgs_tolerance
+    return steps > 0 and state.stage_steps - state.stall_mark >= steps and residual > scene.solver.contact_tolerance
 
 
 def diagnosis(state, scene, pressure: float, residual: float) -> str:
@@ -58,5 +58,5 @@ def diagnosis(state, scene, pressure: float, residual: float) -> str:
     return (f"stage {state.stage} (P = {pressure:.4g}) stalled at step {state.step}: for {ld.stall_steps} steps "
             f"(loading.stall_steps) phi and the walls moved by less than loading.phi_tolerance = {ld.phi_tolerance:g} "
             f"and the contact error did not halve (smallest {state.stall_residual:.3g}, last {residual:.3g} "
-            f"> solver.nlgs_tolerance = {s.nlgs_tolerance:g}); the contact solver stops at solver.nlgs_max_sweeps "
+            f"> solver.contact_tolerance = {s.contact_tolerance:g}); the contact solver stops at solver.nlgs_max_sweeps "
             f"= {s.nlgs_max_sweeps}: raise it, or lower solver.time_step = {s.time_step:g}")

@@ -32,7 +32,7 @@ MARKERS = ("COMPLETE", "INCOMPLETE")
 def run_summary(out: Path, scene, last_step: int, stalled: str | None = None) -> dict:
     """The summary (module docstring) of the run in ``out`` of ``scene``, which ended at step
     ``last_step``; ``stalled``: the diagnosis of the stage that ended it early (compute.stall)."""
-    tol = scene.solver.nlgs_tolerance
+    tol = scene.solver.contact_tolerance
     history = output.read_csv_rows(out / "history.csv")
     frames = output.read_frame_rows(out / "frames.csv")
     pressure_control = scene.walls.control == "pressure"
@@ -91,5 +91,5 @@ def incomplete_reasons(summary: dict) -> str:
     if summary["contact_misses"]:
         worst = max(s["max_contact_residual"] for s in summary["stages"])
         lines.append(f"{summary['contact_misses']} of {summary['steps']} steps ended with a contact residual above "
-                     f"solver.nlgs_tolerance = {summary['contact_tolerance']:g} (largest {worst:.3g})")
+                     f"solver.contact_tolerance = {summary['contact_tolerance']:g} (largest {worst:.3g})")
     return "\n".join(lines)

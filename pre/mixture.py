@@ -43,7 +43,7 @@ RIGID, SOFT = "rigid", "soft"
 # of 1e-2 avoids the slow creep of the box shape that kept a 1e-3 balance unmet (40-disk
 # mixtures, benchmarks/results/design_figures.md); a stage still ends only when I < 1e-4.
 QUASI_STATIC = {
-    "solver.time_step": 0.5, "solver.theta": 1.0, "solver.nlgs_tolerance": 1e-4, "solver.nlgs_max_sweeps": 2000,
+    "solver.time_step": 0.5, "solver.theta": 1.0, "solver.contact_tolerance": 1e-4, "solver.nlgs_max_sweeps": 2000,
     "solver.newton_tolerance": 1e-5, "solver.newton_max_iterations": 25,
     "walls.damping_inertial_number": 1e-2,
     "loading.phi_tolerance": 1e-4, "loading.inertial_tolerance": 1e-4, "loading.force_tolerance": 1e-2,

@@ -77,9 +77,10 @@ velocity control, are written only when given). Raises SceneError on an unknown,
 
 
 def overridden(params: dict, overrides: dict | None, file=PARAMETERS) -> dict:
-    """A copy of ``params`` with ``overrides`` ("table.key" -> value) applied and validated
-    (errors name ``file``)."""
-    out = copy.deepcopy(params)
+    """A copy of ``params`` (of any schema version: written in the current one,
+    :func:`compute.schema.migrate`) with ``overrides`` ("table.key" -> value) applied and
+    validated (errors name ``file``)."""
+    out = schema.migrate(file, copy.deepcopy(params))
     for dotted, value in (overrides or {}).items():
         table, _, key = dotted.partition(".")
         known = [f"{t}.{k.name}" for t, keys in schema.SETTINGS.items() for k in keys]
@@ -107,7 +108,7 @@ def default_parameters(bounds: tuple[float, float, float, float], friction: floa
         damping_inertial_number=1e-3,
         pressures=list(pressures), phi_tolerance=1e-4, inertial_tolerance=1e-4, force_tolerance=1e-3,
         check_every=20, max_steps_per_stage=200000, gravity=[0.0, 0.0],
-        time_step=0.02 * t_ref, theta=1.0, nlgs_tolerance=1e-6, nlgs_max_sweeps=2000, relaxation=1.0, skin=0.1,
+        time_step=0.02 * t_ref, theta=1.0, contact_tolerance=1e-6, nlgs_max_sweeps=2000, relaxation=1.0, skin=0.1,
         frames="stages", every_steps=0, checkpoint_every_steps=1000)
 
 

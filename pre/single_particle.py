@@ -30,7 +30,7 @@ ELEMENTS = 100
 
 
 def parameters(pressures, *, element: str, volumetric: str, time_step: float, theta: float, wall_mass: float,
-               phi_tolerance: float, check_every: int, newton_tolerance: float, nlgs_tolerance: float,
+               phi_tolerance: float, check_every: int, newton_tolerance: float, contact_tolerance: float,
                bounds, poisson: float = 0.495, max_steps: int = 2000, hold_rotation: bool = True) -> dict:
     """The scene parameters of the single-particle study (reduced units)."""
     from pre.scene import contact_laws, neo_hookean_material, scene_parameters
@@ -40,7 +40,7 @@ def parameters(pressures, *, element: str, volumetric: str, time_step: float, th
         **dict(zip(("xmin", "xmax", "ymin", "ymax"), bounds)), mass=wall_mass, control="pressure",
         pressures=[float(p) for p in pressures], phi_tolerance=phi_tolerance, inertial_tolerance=1e-4,
         check_every=check_every, max_steps_per_stage=max_steps, gravity=[0.0, 0.0],
-        time_step=time_step, theta=theta, nlgs_tolerance=nlgs_tolerance, nlgs_max_sweeps=20000, relaxation=1.0,
+        time_step=time_step, theta=theta, contact_tolerance=contact_tolerance, nlgs_max_sweeps=20000, relaxation=1.0,
         skin=0.05, newton_tolerance=newton_tolerance, newton_max_iterations=40, hold_rotation=hold_rotation,
         frames="stages", every_steps=0, checkpoint_every_steps=1000)
 
@@ -67,7 +67,7 @@ def write(folder, *, element: str = "T6", elements: int = ELEMENTS, boundary_seg
           volumetric: str = "standard",
           p_min: float = 1e-3, p_max: float = 1.0, stages: int = 16, time_step: float = 10.0,
           theta: float = 1.0, wall_mass: float | None = None, phi_tolerance: float = 1e-5,
-          check_every: int = 2, newton_tolerance: float = 1e-7, nlgs_tolerance: float = 1e-8,
+          check_every: int = 2, newton_tolerance: float = 1e-7, contact_tolerance: float = 1e-8,
           pressures=None, hold_rotation: bool = True) -> Path:
     """Write the scene folder; returns its path. ``pressures`` overrides the log-spaced stages;
     ``boundary_segments`` grades the mesh toward the boundary (pre.mesh.reference_disk_mesh);
@@ -83,6 +83,6 @@ def write(folder, *, element: str = "T6", elements: int = ELEMENTS, boundary_seg
     params = parameters(pressures, element=element, volumetric=volumetric, time_step=time_step, theta=theta,
                         wall_mass=np.pi if wall_mass is None else wall_mass, phi_tolerance=phi_tolerance,
                         check_every=check_every, newton_tolerance=newton_tolerance,
-                        nlgs_tolerance=nlgs_tolerance, bounds=bounds, hold_rotation=hold_rotation)
+                        contact_tolerance=contact_tolerance, bounds=bounds, hold_rotation=hold_rotation)
     return write_scene(folder, params, np.zeros((1, 2)), np.ones(1), ["soft"],
                        meshes={0: (p, np.array(mesh.cells), element)})

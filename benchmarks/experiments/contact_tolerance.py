@@ -2,7 +2,7 @@
 
 The 144-disk κ = 0.5, μ = 0.2, T3 × 92 mixture (prepared as in soft_step_cost.py) compacted
 through P/E = 0.01, 0.03, 0.1, 0.3, once per case, one process each (``python -m compute``, one
-thread): solver.nlgs_tolerance (the natural-map error each solve must reach) for nlgs and, at the looser
+thread): solver.contact_tolerance (the natural-map error each solve must reach) for nlgs and, at the looser
 tolerances, the block solver, at the study's h = 0.5; and nlgs at 1e-4 with h = 0.25 and 1. Each case reports its
 wall time, steps, Newton iterations, cuts, contact misses (steps whose solve stopped above the
 tolerance, summary.json) and the error of φ at every equilibrated stage against the reference
@@ -37,7 +37,7 @@ def case_scene(base: Path, folder: Path, contact: str, tol: float, h: float, swe
 
     if folder.exists():
         shutil.rmtree(folder)
-    return copy_scene(base, folder, {"solver.contact": contact, "solver.nlgs_tolerance": tol,
+    return copy_scene(base, folder, {"solver.contact": contact, "solver.contact_tolerance": tol,
                                      "solver.nlgs_max_sweeps": sweeps, "solver.time_step": h})
 
 

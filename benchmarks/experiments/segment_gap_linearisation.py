@@ -45,7 +45,7 @@ def main() -> None:
     run = Run(args.scene, out, resume=True, log=lambda m: None)
     m, st = run.model, run.state
     if args.contact_tolerance:
-        run.stepper.solver = solvers.for_model(dataclasses.replace(m.scene.solver, nlgs_tolerance=args.contact_tolerance), m)
+        run.stepper.solver = solvers.for_model(dataclasses.replace(m.scene.solver, contact_tolerance=args.contact_tolerance), m)
     fam = next((f for f in m.families if f.name == "segment_disk"), None)
     if fam is None:
         raise SystemExit(f"{args.scene}: solver.rigid_soft_rows is not \"nodes_and_segments\"")

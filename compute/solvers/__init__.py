@@ -71,7 +71,7 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     from compute.contact.residual import Measure
 
     measure = Measure(settings.contact_error, settings.penetration_bound * diameter)
-    tol, sweeps = settings.nlgs_tolerance, settings.nlgs_max_sweeps
+    tol, sweeps = settings.contact_tolerance, settings.nlgs_max_sweeps
     kind = settings.contact
     if kind == "auto":
         if n_soft == 0:

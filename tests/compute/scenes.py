@@ -18,7 +18,7 @@ def fixed_box_parameters(bounds, friction: float, gravity, time_step: float, tol
     p = default_parameters(bounds, friction, 1.0, [1.0])
     p["walls"]["control"] = "velocity"
     p["loading"].update(velocity=0.0, duration=1.0, gravity=list(gravity))
-    p["solver"].update(time_step=time_step, nlgs_tolerance=tol, nlgs_max_sweeps=100000, theta=1.0)
+    p["solver"].update(time_step=time_step, contact_tolerance=tol, nlgs_max_sweeps=100000, theta=1.0)
     return p
 
 

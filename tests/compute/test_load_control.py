@@ -124,7 +124,7 @@ def test_max_steps_and_contact_misses_end_incomplete(tmp_path):
     import csv
 
     history = list(csv.DictReader(open(out / "history.csv")))
-    misses = sum(float(r["nlgs_residual"]) > p["solver"]["nlgs_tolerance"] for r in history)
+    misses = sum(float(r["nlgs_residual"]) > p["solver"]["contact_tolerance"] for r in history)
     assert misses > 0 and summary["contact_misses"] == misses and summary["steps"] == len(history) == 600
     assert any(m.startswith("WARNING: run INCOMPLETE") for m in logs)
     assert "not equilibrated" in (out / "INCOMPLETE").read_text()

@@ -33,7 +33,7 @@ def test_every_key_is_documented_once_with_a_range_or_options():
 def _minimal(**overrides):
     settings = dict(xmin=0.0, xmax=1.0, ymin=0.0, ymax=1.0, mass=1.0, control="pressure", pressures=[1.0],
                     phi_tolerance=1e-4, inertial_tolerance=1e-4, check_every=10, max_steps_per_stage=100,
-                    gravity=[0.0, 0.0], time_step=0.1, theta=1.0, nlgs_tolerance=1e-6, nlgs_max_sweeps=100,
+                    gravity=[0.0, 0.0], time_step=0.1, theta=1.0, contact_tolerance=1e-6, nlgs_max_sweeps=100,
                     relaxation=1.0, skin=0.1, frames="stages", every_steps=0, checkpoint_every_steps=10)
     settings.update(overrides)
     return scene_parameters({"rigid": rigid_material()}, contact_laws(["rigid"], 0.3), **settings)

@@ -75,7 +75,7 @@ def test_threads_file_is_followed(tmp_path):
 def _four_soft(folder: Path) -> Path:
     soft = [scenes.disk(30, "T3", centre=c, radius=1.0) for c in ((0.0, 0.0), (2.1, 0.0), (0.0, 2.1), (2.1, 2.1))]
     params = scenes.parameters((-1.1, 3.2, -1.1, 3.2), element="T3", friction=0.3, time_step=0.5,
-                               nlgs_tolerance=1e-8, pressures=(0.01, 0.03), max_steps=12)
+                               contact_tolerance=1e-8, pressures=(0.01, 0.03), max_steps=12)
     params["output"].update(every_steps=4)
     return scenes.write(folder, params, soft=soft)
 

@@ -26,7 +26,7 @@ def disk(n: int = 92, element: str = "T6", centre=(0.0, 0.0), radius: float = 1.
 
 def parameters(bounds, *, element: str = "T6", friction: float = 0.0, time_step: float = 1.0, theta: float = 1.0,
                wall_mass: float = np.pi, control: str = "pressure", pressures=(1e-3,), gravity=(0.0, 0.0),
-               newton_tolerance: float = 1e-9, nlgs_tolerance: float = 1e-10, check_every: int = 2,
+               newton_tolerance: float = 1e-9, contact_tolerance: float = 1e-10, check_every: int = 2,
                phi_tolerance: float = 1e-6, max_steps: int = 400, young: float = E, poisson: float = NU) -> dict:
     from pre.scene import contact_laws, neo_hookean_material, rigid_material, scene_parameters
 
@@ -36,7 +36,7 @@ def parameters(bounds, *, element: str = "T6", friction: float = 0.0, time_step:
         **dict(zip(("xmin", "xmax", "ymin", "ymax"), bounds)), mass=wall_mass, control=control,
         pressures=list(pressures), velocity=0.0, duration=1.0, phi_tolerance=phi_tolerance,
         inertial_tolerance=1e-4, check_every=check_every, max_steps_per_stage=max_steps, gravity=list(gravity),
-        time_step=time_step, theta=theta, nlgs_tolerance=nlgs_tolerance, nlgs_max_sweeps=50000, relaxation=1.0,
+        time_step=time_step, theta=theta, contact_tolerance=contact_tolerance, nlgs_max_sweeps=50000, relaxation=1.0,
         skin=0.05, newton_tolerance=newton_tolerance, newton_max_iterations=40,
         frames="stages", every_steps=0, checkpoint_every_steps=100000)
 
@@ -62,12 +62,12 @@ def write(folder, params: dict, soft=(), rigid=()) -> Path:
 
 
 def pressed_three(folder, friction: float, time_step: float, newton_tolerance: float = 1e-9,
-                  nlgs_tolerance: float = 1e-3, pressure: float = 0.05):
+                  contact_tolerance: float = 1e-3, pressure: float = 0.05):
     """(model, stepper, state) of three soft T3 x 30 disks of radius 1 in a box just larger than
     them, pressed together by the walls at ``pressure`` (P/E)."""
     soft = [disk(30, "T3", centre=c, radius=1.0) for c in ((0.0, 0.0), (2.0, 0.0), (1.0, 1.73))]
     params = parameters((-1.02, 3.02, -1.02, 2.75), element="T3", friction=friction, time_step=time_step,
-                        newton_tolerance=newton_tolerance, nlgs_tolerance=nlgs_tolerance, pressures=(pressure,))
+                        newton_tolerance=newton_tolerance, contact_tolerance=contact_tolerance, pressures=(pressure,))
     write(folder, params, soft=soft)
     return load(folder)
 

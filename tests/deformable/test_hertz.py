@@ -34,7 +34,7 @@ def squeeze(tmp_path, n, forces, max_steps=200):
     points, cells = scenes.disk(n, "T6", turn=np.pi / 2)
     bottom, top = points[:, 1].min(), points[:, 1].max()
     params = scenes.parameters((-WIDTH / 2, WIDTH / 2, bottom, top), time_step=10.0, newton_tolerance=1e-9,
-                               nlgs_tolerance=1e-9)
+                               contact_tolerance=1e-9)
     scenes.write(tmp_path, params, soft=[(points, cells)])
     model, stepper, state = scenes.load(tmp_path)
     scenes.pin_walls(stepper, (0, 1))

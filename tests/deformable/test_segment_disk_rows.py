@@ -27,7 +27,7 @@ def _scene(folder, rows: str, gap: float, pressure: float = 0.01):
     face = p[np.argsort(p[:, 0])[-2:]]  # the two nodes of the face on the +x axis
     x_f, length = face[:, 0].mean(), abs(face[1, 1] - face[0, 1])
     params = scenes.parameters((-1.01, 1.0 + 2 * R_RIGID + 0.02, -1.02, 1.02), element="T3", friction=0.3,
-                               time_step=0.5, pressures=(pressure,), nlgs_tolerance=1e-8, newton_tolerance=1e-9)
+                               time_step=0.5, pressures=(pressure,), contact_tolerance=1e-8, newton_tolerance=1e-9)
     params["solver"]["rigid_soft_rows"] = rows
     scenes.write(folder, params, soft=[(p, cells)], rigid=[((1.0 + R_RIGID + 0.01, 0.0), R_RIGID)])
     model, stepper, state = scenes.load(folder)

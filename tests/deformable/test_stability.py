@@ -62,7 +62,7 @@ def test_friction_one_comes_to_rest(tmp_path):
     """Three soft disks pressed together with μ = 1 (a large h, tight tolerances): no cut, no
     NaN; at rest every wall carries P times its length (its equation of motion at zero
     velocity) and every impulse lies in its Coulomb cone, some sticking inside it."""
-    model, stepper, state = scenes.pressed_three(tmp_path, 1.0, 1.0, nlgs_tolerance=1e-8)
+    model, stepper, state = scenes.pressed_three(tmp_path, 1.0, 1.0, contact_tolerance=1e-8)
     scenes.settle(stepper, state, 0.05, 300)
     assert np.isfinite(state.q).all() and stepper.stats["cuts"] == 0
     b = model.bounds(state.q)
@@ -170,7 +170,7 @@ def test_contact_misses_at_the_deepest_cut_are_kept_and_reported(tmp_path):
 
     from compute import solvers
 
-    model, stepper, state = scenes.pressed_three(tmp_path, 0.3, 1.0, nlgs_tolerance=1e-10)
+    model, stepper, state = scenes.pressed_three(tmp_path, 0.3, 1.0, contact_tolerance=1e-10)
     stepper.solver = solvers.for_model(replace(model.scene.solver, nlgs_max_sweeps=1, contact="nlgs"), model)
     reports = [stepper.step(state, 0.05) for _ in range(3)]
     assert [r.sub_steps for r in reports][1:] == [16, 16] and reports[0].cuts == stepper.MAX_CUTS

@@ -36,7 +36,7 @@ def settle(model, stepper, state, pressure, max_steps=200, tol=1e-10):
 @pytest.mark.parametrize("element,n", [("T6", 92), ("T3", 92)])
 def test_area_change_is_the_2d_bulk_response(tmp_path, element, n):
     single_particle.write(tmp_path / "scene", element=element, elements=n, pressures=[1e-3], newton_tolerance=1e-10,
-              nlgs_tolerance=1e-10)
+              contact_tolerance=1e-10)
     model, stepper, state = scenes.load(tmp_path / "scene")
     body = scenes.fe_body(model)
     a0 = body.area(body.X)

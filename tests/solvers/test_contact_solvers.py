@@ -246,7 +246,7 @@ def test_auto_choice():
 
     from compute.solvers import for_scene
 
-    settings = SimpleNamespace(contact="auto", nlgs_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0,
+    settings = SimpleNamespace(contact="auto", contact_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0,
                                contact_error="impulse", penetration_bound=0.0)
     assert isinstance(for_scene(settings, 1, 0), BlockGS)
     assert isinstance(for_scene(settings, 1, 3).fallbacks[0], BlockGS) and isinstance(for_scene(settings, 72, 72).fallbacks[0], BlockGS)
