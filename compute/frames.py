@@ -13,10 +13,11 @@ from compute.state import State
 
 
 def wall_forces(contacts, time_step: float) -> np.ndarray:
-    """Normal force (4,) that the particles exert on each wall."""
+    """Normal force (4,) that the particles exert on each wall, from the impulses of
+    ``contacts`` over the time step ``time_step`` (:meth:`ContactRows.forces`)."""
     f = np.zeros(4)
     wall = contacts.body_j < 0
-    np.add.at(f, -1 - contacts.body_j[wall], contacts.impulse[wall, 0] / time_step)
+    np.add.at(f, -1 - contacts.body_j[wall], contacts.forces(time_step)[wall, 0])
     return f
 
 

@@ -74,7 +74,8 @@ def write_contacts(path: Path, contacts: ContactRows, centres_i: np.ndarray, cen
                    time_step: float) -> None:
     """Active contacts (r_n > 0) as lines from centre i to centre j (or the wall contact point).
 
-    centres_i, centres_j (nc, 2): the end points of each contact's line; forces = impulses / h.
+    centres_i, centres_j (nc, 2): the end points of each contact's line; forces of the impulses
+    over the time step ``time_step`` (:meth:`ContactRows.forces`).
     """
     import meshio
 
@@ -85,7 +86,8 @@ def write_contacts(path: Path, contacts: ContactRows, centres_i: np.ndarray, cen
     lines = np.column_stack([np.arange(n), n + np.arange(n)])
     nrm = contacts.normal[act]
     tan = np.column_stack([-nrm[:, 1], nrm[:, 0]])
-    fn, ft = contacts.impulse[act, 0] / time_step, contacts.impulse[act, 1] / time_step
+    forces = contacts.forces(time_step)[act]
+    fn, ft = forces[:, 0], forces[:, 1]
     force = fn[:, None] * nrm + ft[:, None] * tan
     data = {
         "body_i": contacts.body_i[act], "body_j": contacts.body_j[act],

@@ -245,7 +245,7 @@ class Run:
 
     def _velocity_stage(self) -> None:
         load, st = self.scene.loading, self.state
-        n = int(round(load.duration / self.scene.solver.time_step))
+        n = int(round(load.duration / self.stepper.h))
         while st.stage_steps < n:
             self._record(self.stepper.step(st, 0.0, load.velocity), 0.0, 0)
             self._periodic_checkpoint()
@@ -307,7 +307,7 @@ class Run:
         ok = abs(phi - window[0]) < load.phi_tolerance * phi and self._inertial(pressure) < load.inertial_tolerance
         if ok and load.force_tolerance > 0.0:
             applied = pressure * wall_lengths(self.model.bounds(st.q))
-            contact = wall_forces(self.last_contacts, self.scene.solver.time_step)
+            contact = wall_forces(self.last_contacts, self.stepper.h)
             ok = bool(np.max(np.abs(contact - applied)) < load.force_tolerance * applied.min())
         return bool(ok)
 
@@ -317,7 +317,7 @@ class Run:
         from compute.frames import write_frame_files
 
         st = self.state
-        write_frame_files(self.out, st.frame, self.model, st, self.scene.solver.time_step, pressure)
+        write_frame_files(self.out, st.frame, self.model, st, self.stepper.h, pressure)
         b = self.model.bounds(st.q)
         rows = output.read_frame_rows(self.out / "frames.csv")
         rows.append(dict(frame=st.frame, time=repr(st.time), step=st.step, stage=st.stage,

@@ -57,6 +57,13 @@ class ContactRows:
     def __len__(self) -> int:
         return len(self.gap)
 
+    def forces(self, h: float) -> np.ndarray:
+        """The contact forces (nc, 2) = (f_n, f_t) of the impulses over a step of length ``h``: the
+        mean force r / h over the step. The one place impulses become forces (frames, wall
+        forces): a step taken in sub-steps leaves impulses rescaled to the whole step
+        (compute.stepping.control), so ``h`` is the run's time step."""
+        return self.impulse / h
+
     @classmethod
     def concatenate(cls, parts: list["ContactRows"]) -> "ContactRows":
         names = cls.__dataclass_fields__
