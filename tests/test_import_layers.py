@@ -94,11 +94,10 @@ def layer_graph(graph):
     return layers
 
 
-def cycles(graph) -> list[list[str]]:
-    """One cycle through each strongly connected component of more than one node (Tarjan's
-    components, then a shortest path back to the component's first node), as node lists
-    [a, b, ..., a]."""
-    index, low, on_stack, stack, components = {}, {}, set(), [], []
+def components(graph) -> list[set[str]]:
+    """The strongly connected components of more than one node (Tarjan): the nodes on a cycle,
+    grouped by the cycles that join them."""
+    index, low, on_stack, stack, found = {}, {}, set(), [], []
 
     def visit(v):  # recursion depth is bounded by the number of modules (a few hundred)
         index[v] = low[v] = len(index)
@@ -119,13 +118,19 @@ def cycles(graph) -> list[list[str]]:
                 if w == v:
                     break
             if len(component) > 1:
-                components.append(set(component))
+                found.append(set(component))
 
     for v in sorted(graph):
         if v not in index:
             visit(v)
+    return found
+
+
+def cycles(graph) -> list[list[str]]:
+    """One cycle through each of ``components(graph)`` (a shortest path back to its first
+    node), as node lists [a, b, ..., a]."""
     found = []
-    for component in components:
+    for component in components(graph):
         start = min(component)
         previous, frontier = {start: None}, [start]
         while frontier and start not in [w for v in frontier for w in graph[v]]:
@@ -146,10 +151,12 @@ def cycles(graph) -> list[list[str]]:
 
 
 def describe(graph, found) -> str:
-    """Each cycle's arrows with the import statements behind them."""
+    """Each cycle's arrows with the import statements behind them, after the nodes of its
+    component (every one of them is on some cycle)."""
     lines = []
     for cycle in found:
-        lines.append(" -> ".join(cycle))
+        component = next(c for c in components(graph) if cycle[0] in c)
+        lines.append(f"{' -> '.join(cycle)}   (on cycles: {', '.join(sorted(component))})")
         for a, b in zip(cycle, cycle[1:]):
             lines.append(f"  {a} -> {b}:")
             lines += [f"    {where}" for where in graph[a][b]]
