@@ -1,5 +1,5 @@
 """A run given a freed core while it runs: ``--threads 1`` against the same run switched to 2
-threads by ``OUT/threads`` (what compute.dispatch writes once a study's other runs have ended),
+threads by ``OUT/threads`` (what studies.dispatch writes once a study's other runs have ended),
 and against ``--threads 2`` from the start.
 
 The scene must hold enough soft bodies for compute.threads.for_bodies to give its group 2 threads

@@ -10,7 +10,7 @@ readable record instead of carriage returns.
 studies' reduced units), shown with a Display and written to
 ``OUT/progress.json`` (atomically, at most every ``interval`` seconds and at every stage end)
 for whoever watches the run from outside, e.g. a study dispatching many runs
-(:func:`compute.dispatch.dispatch`).
+(:func:`studies.dispatch.dispatch`).
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ creep (φ may drift by phi_tolerance per window). The sliding window ends stages
 same distance from a ten times tighter test (benchmarks/results/stage_window_144.md).
 
 A run asked to stop (SIGTERM) stops at the end of the step it is computing: it writes a
-checkpoint, then dies by that signal, as a killed run (nothing marked, compute.dispatch resumes
+checkpoint, then dies by that signal, as a killed run (nothing marked, studies.dispatch resumes
 it), having lost nothing. A second SIGTERM kills it at once. Why: a step of a large soft mixture
 at high pressure takes minutes, and a machine given back at a fixed time should lose none of them.
 """

@@ -16,7 +16,8 @@ equilibrated, Newton iterations, cuts, load-increment halvings, sub-steps (of th
 history records them), contact misses and the largest contact residual; and the totals:
 ``steps`` the run's last step, ``history_missing_steps`` the ranges of steps without a row in
 ``history.csv`` (compute.output.History; the per-stage sums leave them out), ``stalled`` the
-diagnosis of a stalled stage (null when none stalled).
+diagnosis of a stalled stage (null when none stalled). :func:`run_status` reads a run's state
+back from these files (and FAILED, the checkpoint) for whoever resumes or collects runs.
 """
 
 from __future__ import annotations
@@ -27,6 +28,21 @@ from pathlib import Path
 from compute import files, output
 
 MARKERS = ("COMPLETE", "INCOMPLETE")
+
+
+def run_status(out: str | Path) -> str:
+    """The state of the run in ``out``, from its files: ``complete`` or ``incomplete`` (the
+    marker), ``failed`` (OUT/FAILED), ``partial`` (a checkpoint, no marker) or ``new``."""
+    out = Path(out)
+    if (out / "COMPLETE").is_file():
+        return "complete"
+    if (out / "INCOMPLETE").is_file():
+        return "incomplete"
+    if (out / "FAILED").is_file():
+        return "failed"
+    if (out / "checkpoint" / "state.npz").is_file():
+        return "partial"
+    return "new"
 
 
 def run_summary(out: Path, scene, last_step: int, stalled: str | None = None) -> dict:

@@ -16,7 +16,7 @@ than on one before this rule: benchmarks/results/design_figures.md).
 A run may be given more threads while it runs (:class:`ThreadsFile`): it reads an optional file
 ``OUT/threads`` (one integer) after every step and, when it changed, calls ``configure`` again
 with it (capped to NUMBA_NUM_THREADS, the pool numba started with). Why: a study dispatcher
-(compute.dispatch) starts each run with one thread, so that the runs fill the cores; once fewer
+(studies.dispatch) starts each run with one thread, so that the runs fill the cores; once fewer
 runs remain than cores, it writes each remaining run's share of the freed cores there instead of
 leaving them idle. ``configure`` only sets the cap that ``for_bodies`` applies at every kernel
 launch, so the change takes effect at the next body-group kernel. The kernels are per body (no

@@ -154,7 +154,7 @@ def measure_runs(workdir: Path, study: dict, threshold: float = 1e-9, log: Calla
     frame whose files are gone keeps its row of the run's earlier measures.csv (a run resumed on
     another machine from its small files, post.table.measure_output)."""
     from compute import files
-    from compute.dispatch import run_status
+    from compute.summary import run_status
     from compute.output import read_frame_rows
     from post import measures
     from post.errors import OutputError

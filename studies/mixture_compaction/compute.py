@@ -1,5 +1,5 @@
 """Stage 2 of the mixture compaction study: runs every scene DIR/runs/<name>/scene into
-DIR/runs/<name>/out, dispatched with Dask distributed (compute.dispatch): a local cluster of
+DIR/runs/<name>/out, dispatched with Dask distributed (studies.dispatch): a local cluster of
 --workers processes with one thread each by default, or the scheduler at --scheduler ADDRESS.
 
 Runs whose OUT/COMPLETE exists are skipped; runs killed midway resume from their checkpoint; a run
@@ -32,7 +32,7 @@ def main(argv=None) -> int:
     if a.checkpoint_minutes is not None and not a.checkpoint_minutes > 0.0:
         p.error(f"--checkpoint-minutes: expected a positive number of minutes, got {a.checkpoint_minutes}")
 
-    from compute.dispatch import RunSpec, dispatch
+    from studies.dispatch import RunSpec, dispatch
 
     w = Path(a.workdir)
     study_file = w / "study.json"

@@ -30,7 +30,8 @@ import os
 import sys
 from pathlib import Path
 
-from compute.dispatch import run_status, run_times
+from compute.summary import run_status
+from studies.dispatch import run_times
 from post import compaction, plots
 from post.compaction import Reference, SingleParticleLaw
 

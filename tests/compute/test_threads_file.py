@@ -1,5 +1,5 @@
 """A run given more threads while it runs (OUT/threads, compute.threads.ThreadsFile) and the
-dispatcher's share of freed cores (compute.dispatch.core_shares): the file is picked up after a
+dispatcher's share of freed cores (studies.dispatch.core_shares): the file is picked up after a
 step, and the results do not depend on the thread count (the body-group kernels are per body)."""
 
 import os
@@ -12,7 +12,7 @@ import numba
 import pytest
 
 from compute import threads
-from compute.dispatch import core_shares
+from studies.dispatch import core_shares
 from tests.deformable import scenes
 
 # runs the scene on 1 thread, MIN_BODIES_PER_THREAD lowered to 1 so that its 4 soft bodies may use
@@ -107,7 +107,7 @@ def test_switching_to_two_threads_mid_run_changes_no_result(tmp_path):
 
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 cores to hand out")
 def test_dispatcher_gives_the_freed_core_to_the_run_still_going(tmp_path, monkeypatch):
-    from compute import dispatch as d
+    from studies import dispatch as d
     from tests.compute.scenes import rigid_scene
     from tests.studies.test_mixture_dispatch import lattice_scene
 

@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from compute.dispatch import run_times
 from post import compaction, models
 from post.compaction import Reference, SingleParticleLaw
 
@@ -86,15 +85,6 @@ def test_law_from_a_json_and_from_a_table(tmp_path):
                      "T3,30,,0.3,0.97,0.79,0.96\nT3,92,,0.19,0.985,0.79,0.98\nT6,92,,0.15,0.99,0.79,0.98\n")
     law = compaction.law_from_file(table, "T3", 100)
     assert (law.b, law.phi_p_max) == (0.19, 0.985)
-
-
-def test_run_times_sum_the_dispatches_of_a_run(tmp_path):
-    log = tmp_path / "dispatch.jsonl"
-    log.write_text("\n".join(json.dumps(e) for e in [
-        {"name": "a", "status": "killed", "wall_time": 10.0}, {"name": "a", "status": "complete", "wall_time": 5.0},
-        {"name": "b", "status": "skipped", "wall_time": 0.0}, {"name": "b", "status": "failed", "wall_time": 2.0}]))
-    assert run_times(log) == {"a": 15.0, "b": 2.0}
-    assert run_times(tmp_path / "none.jsonl") == {}
 
 
 def test_summary_names_the_numbers_and_the_unfinished_runs(study, result):

@@ -1,4 +1,4 @@
-"""compute.dispatch: independent runs on a local Dask cluster; a failing run does not take the
+"""studies.dispatch: independent runs on a local Dask cluster; a failing run does not take the
 others down and records its diagnosis; complete runs are skipped when dispatching again."""
 
 import json
@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from compute.dispatch import RunSpec, dispatch, run_status
+from compute.summary import run_status
+from studies.dispatch import RunSpec, dispatch, run_times
 
 
 def lattice_scene(folder, pressures=(1.0,)):
@@ -61,3 +62,12 @@ def test_progress_of_the_runs_in_plain_lines(tmp_path):
     assert any("runs ended;" in line for line in lines)  # one line per look at the running runs
     for r in runs:
         assert json.loads((r.out / "progress.json").read_text())["status"] == "complete"
+
+
+def test_run_times_sum_the_dispatches_of_a_run(tmp_path):
+    log = tmp_path / "dispatch.jsonl"
+    log.write_text("\n".join(json.dumps(e) for e in [
+        {"name": "a", "status": "killed", "wall_time": 10.0}, {"name": "a", "status": "complete", "wall_time": 5.0},
+        {"name": "b", "status": "skipped", "wall_time": 0.0}, {"name": "b", "status": "failed", "wall_time": 2.0}]))
+    assert run_times(log) == {"a": 15.0, "b": 2.0}
+    assert run_times(tmp_path / "none.jsonl") == {}

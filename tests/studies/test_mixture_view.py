@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from compute.dispatch import run_times
+from studies.dispatch import run_times
 from studies.mixture_compaction.view import view
 
 SETTINGS = {"study": "mixture_compaction", "n": 1500, "element": "T3", "elements": 92, "volumetric": "standard",

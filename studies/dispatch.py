@@ -7,7 +7,7 @@ installed and the run folders on a shared file system).
 
 How one run is executed (:func:`execute_run`, a Dask task)
 ----------------------------------------------------------
-The task starts a child process ``python -m compute.dispatch SCENE OUT`` and waits for it:
+The task starts a child process ``python -m studies.dispatch SCENE OUT`` and waits for it:
 
 - the child holds the output folder's lock (:mod:`compute.output_folder`, an exclusive
   ``fcntl.flock`` on ``OUT/.lock``) while it computes, so that two runs never write the same folder (e.g. an orphan of a killed study and its restart: the second
@@ -21,7 +21,9 @@ The task starts a child process ``python -m compute.dispatch SCENE OUT`` and wai
   benchmarks/results/threads.md); OpenMP and BLAS threads are capped to it, while numba's pool
   (NUMBA_NUM_THREADS) is sized for the cores of the machine so that the run can be given more
   (below);
-- its stdout and stderr are appended to ``OUT/compute.log``.
+- its stdout and stderr are appended to ``OUT/compute.log``;
+- the folder holding this ``studies`` package goes first on the child's PYTHONPATH, so that the
+  child imports the same code from any working folder, installed or not.
 
 Freed cores go to the runs still going
 --------------------------------------
@@ -67,9 +69,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from compute.progress import Display, read_progress
+from compute.summary import run_status
 
-__all__ = ["RunSpec", "RunResult", "core_shares", "dispatch", "execute_run", "local_cluster", "run_status",
-           "run_times"]
+__all__ = ["RunSpec", "RunResult", "core_shares", "dispatch", "execute_run", "local_cluster", "run_times"]
 
 LOG = "compute.log"
 POLL = 2.0  # seconds between two looks at the running runs' progress
@@ -135,21 +137,6 @@ def _show_progress(display: Display, ended: int, running: list[RunSpec]) -> None
     display.update(done, f"{ended}/{display.total} runs ended; " + "; ".join(parts))
 
 
-def run_status(out: str | Path) -> str:
-    """``complete``, ``incomplete``, ``failed``, ``partial`` (a checkpoint, no marker) or ``new``,
-    from the files."""
-    out = Path(out)
-    if (out / "COMPLETE").is_file():
-        return "complete"
-    if (out / "INCOMPLETE").is_file():
-        return "incomplete"
-    if (out / "FAILED").is_file():
-        return "failed"
-    if (out / "checkpoint" / "state.npz").is_file():
-        return "partial"
-    return "new"
-
-
 def run_times(log_file: str | Path) -> dict[str, float]:
     """{run name: wall seconds of the dispatches that ran it, summed over resumptions} from a
     dispatch log (``log_file`` of :func:`dispatch`; {} when there is none)."""
@@ -188,7 +175,10 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
     env.update({k: str(int(threads)) for k in _THREAD_VARIABLES})
     env["NUMBA_NUM_THREADS"] = str(_pool_size(threads))  # room for the freed cores (module docstring)
     env["SOFTRIGID_PARENT_PID"] = str(os.getpid())
-    cmd = [sys.executable, "-m", "compute.dispatch", str(scene), str(out), "--threads", str(int(threads))]
+    # the child imports this package whatever its working folder: the folder holding studies/ first
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).resolve().parents[1])] +
+                                        [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    cmd = [sys.executable, "-m", "studies.dispatch", str(scene), str(out), "--threads", str(int(threads))]
     if retry_failed:
         cmd.append("--retry-failed")
     if checkpoint_minutes is not None:
@@ -400,7 +390,7 @@ def _numba_pool() -> int:
 
 
 def _child(argv: list[str] | None = None) -> int:
-    """``python -m compute.dispatch SCENE OUT [--retry-failed] [--checkpoint-minutes M] [--threads N]``: one run,
+    """``python -m studies.dispatch SCENE OUT [--retry-failed] [--checkpoint-minutes M] [--threads N]``: one run,
     under OUT's lock."""
     import argparse
     import traceback
@@ -408,7 +398,7 @@ def _child(argv: list[str] | None = None) -> int:
     from compute import output_folder
     from compute.errors import InputError
 
-    p = argparse.ArgumentParser(prog="python -m compute.dispatch",
+    p = argparse.ArgumentParser(prog="python -m studies.dispatch",
                                 description="Run one scene under its output folder's lock (used by dispatch).")
     p.add_argument("scene")
     p.add_argument("out")
