@@ -8,6 +8,10 @@ outcome is appended to DIR/dispatch.jsonl (one JSON object per line: time, name,
 wall_time, resumed, message). Exit status 0 when every run is complete, 1 otherwise.
 """
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import json
 import sys

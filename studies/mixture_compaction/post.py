@@ -24,6 +24,10 @@ THE PAPER'S VALUE, and φ_p,max = 1 (an assumption: an incompressible disk fills
 flagged as such in every output.
 """
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import json
 import os

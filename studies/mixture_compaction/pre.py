@@ -17,6 +17,10 @@ reused, and the study's settings (N, elements, pressures, --set) must be the sam
 study is run over several sessions, one or two runs at a time, and analysed as one study.
 """
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import json
 import shutil

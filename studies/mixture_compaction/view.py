@@ -12,6 +12,10 @@ that the analysis reads (N, elements, pressures, material); a run's own scene op
 name are refused (the analysis keys runs by name).
 """
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import json
 import os

@@ -2,6 +2,10 @@
 
 Same as ``python -m compute DIR/scene --out DIR/out``, with its exit codes."""
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import sys
 from pathlib import Path

@@ -1,6 +1,10 @@
 """Stage 3 of the rigid jamming study: measures of every frame (phi, Z, P from contacts and from
 walls) in DIR/out/post/measures.csv, the force chains and phi, Z against P as PNGs."""
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import sys
 from pathlib import Path

@@ -1,6 +1,10 @@
 """Stage 1 of the rigid jamming study: a polydisperse rigid-disk packing jammed by a gentle
 stress-controlled compression (run with the compute stage), written as DIR/scene."""
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 
 from pre.jamming import jammed_rigid_scene

@@ -15,6 +15,10 @@ Extra --compare DIR options add other runs (other meshes) to the figure.
 
 from __future__ import annotations
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import json
 import sys

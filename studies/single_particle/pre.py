@@ -13,6 +13,10 @@ check_every = 2 steps and the walls' inertial number is below 1e-4.
 
 from __future__ import annotations
 
+if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
+    import pathlib, sys; sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2]))
+    from studies.entry import run_as_file; run_as_file(__file__)
+
 import argparse
 import sys
 from pathlib import Path
