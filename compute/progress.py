@@ -10,7 +10,9 @@ readable record instead of carriage returns.
 studies' reduced units), shown with a Display and written to
 ``OUT/progress.json`` (atomically, at most every ``interval`` seconds and at every stage end)
 for whoever watches the run from outside, e.g. a study dispatching many runs
-(:func:`studies.dispatch.dispatch`).
+(:func:`studies.dispatch.dispatch`). From its start to its end, a RunProgress also shows once
+that numba is compiling, when it first does (:mod:`compute.compiling`), so that a first run's
+slow first steps are not read as the toolkit's speed.
 """
 
 from __future__ import annotations
@@ -101,6 +103,9 @@ class RunProgress:
         self._stage_t0 = self._t0
         self._written = -float("inf")
         self.record: dict = {}
+        from compute.compiling import CompileNotice  # imports numba: not needed to watch runs (Display)
+
+        self._compiling = CompileNotice(self.display.mark).start()
 
     def step(self, stage: int, pressure: float, phi: float, step: int, stage_steps: int) -> None:
         """After every accepted step."""
@@ -129,6 +134,7 @@ class RunProgress:
 
     def finish(self, status: str) -> None:
         """The run ended: ``status`` complete, incomplete or failed."""
+        self._compiling.stop()
         if self.record:
             self.record.update(status=status, elapsed=time.monotonic() - self._t0, eta=0.0)
             self.display.mark(self.text())
