@@ -1,11 +1,22 @@
-"""Stage 1 of the mixture compaction study (Cárdenas-Barrantes et al. 2021): for each friction μ
-and seed, N polydisperse rigid disks jammed once by the compute stage (pre.jamming), with friction
-μ or, with --jamming-mu, one friction for every run (one packing per seed, compressed with each
-μ; the paper does not say how it prepared its frictionless samples, whose φ₀ are its frictional
-ones within 0.002: study README); then, for each
-mixture ratio κ, a fraction κ of the particle volume replaced by neo-Hookean disks at the same
-positions and sizes (pre.mixture), written as DIR/runs/<name>/scene with the loading program:
-pressure stages P/E log-spaced from --p-min to --p-max, each equilibrated.
+"""Stage 1 of the mixture compaction study (Cárdenas-Barrantes et al. 2021): N polydisperse rigid
+disks jammed by the compute stage (pre.jamming); then, for each mixture ratio κ, a fraction κ of
+the particle volume replaced by neo-Hookean disks at the same positions and sizes (pre.mixture),
+written as DIR/runs/<name>/scene with the loading program: pressure stages P/E log-spaced from
+--p-min to --p-max, each equilibrated.
+
+Preparation (--preparation):
+- shared (the default): per seed, one packing jammed with friction --jamming-mu (default 0.2)
+  and one κ replacement (the same soft disks: the choice depends on the packing and the seed
+  only), compacted with each μ of the study. The paper's φ₀ for μ = 0 and 0.2 agree within
+  0.002 at every κ, which a frictionless jamming does not give: its two frictions start from one
+  prepared sample (study README, "Preparation").
+- per-friction: each μ jams its own packing with friction μ.
+
+The prepared sample's φ₀ and Z₀, written per run in study.json ("prepared"), are measured as post
+measures a frame (post.measures): φ on the mixture scene (rigid disks π r², soft disks by their
+element areas, the box of its walls); the Z columns on the jamming run's last frame (the same
+positions; rattlers by the jamming friction's rule, post.measures.default_min_contacts), also
+kept with the jamming record so that --add reusing it has them.
 
 Writes DIR/study.json (the runs and their parameters), DIR/rigid/mu<μ>_s<seed>/ (the jamming
 runs and the jammed rigid scenes) and DIR/runs/k<κ>_mu<μ>_s<seed>/scene. Reduced units: mean
@@ -13,8 +24,9 @@ diameter 1, density 1, E = 1 (soft disks; rigid ones have E = infinity).
 
 With --add, the (κ, μ, seed) runs not yet in DIR/study.json are added to it: the study's runs
 keep their scenes and outputs (some may be running), a jammed packing of the same (μ, seed) is
-reused, and the study's settings (N, elements, pressures, --set) must be the same. Why: a large
-study is run over several sessions, one or two runs at a time, and analysed as one study.
+reused, and the study's settings (N, elements, pressures, preparation, --set) must be the same.
+Why: a large study is run over several sessions, one or two runs at a time, and analysed as one
+study. A study.json without "preparation" (written before it existed) is per-friction.
 """
 
 if not __package__:  # run as a file (python studies/X/stage.py): studies/entry.py
@@ -33,7 +45,9 @@ import numpy as np
 # The small default: the whole study (4 kappa x 2 mu, one seed) to P/E = 1 in 7 stages (the
 # program of the 1500-disk runs), a few minutes on 2 cores (measured: README.md).
 DEFAULTS = {"n": 30, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
-            "p_min": 1e-3, "p_max": 1.0, "stages": 7}
+            "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.2}
+# what a study.json written before a setting existed holds (--add compares with it)
+LEGACY_SETTINGS = {"preparation": "per-friction"}
 
 
 def run_name(kappa: float, mu: float, seed: int) -> str:
@@ -63,9 +77,12 @@ def main(argv=None) -> int:
                    help="mixture ratios: fraction of the particle volume made deformable (default 0.2 0.5 0.8 1)")
     p.add_argument("--mu", type=float, nargs="+", default=DEFAULTS["mu"],
                    help="inter-particle friction coefficients (default 0 0.2); walls are frictionless")
+    p.add_argument("--preparation", choices=("shared", "per-friction"), default=DEFAULTS["preparation"],
+                   help="shared (default): per seed one packing jammed with --jamming-mu and one choice of soft "
+                        "disks, compacted with every mu; per-friction: each mu jams its own packing")
     p.add_argument("--jamming-mu", type=float, default=None,
-                   help="friction of the rigid disks while they are jammed, for every run (default: each run's "
-                        "own mu); e.g. 0.2 to compress the frictionless runs from the frictional packing")
+                   help=f"shared preparation: friction of the rigid disks while they are jammed "
+                        f"(default {DEFAULTS['jamming_mu']})")
     p.add_argument("--seeds", type=int, nargs="+", default=DEFAULTS["seeds"], help="random seeds (default 1)")
     p.add_argument("--p-min", type=float, default=DEFAULTS["p_min"], help="first P/E (default 1e-3)")
     p.add_argument("--p-max", type=float, default=DEFAULTS["p_max"], help=f"last P/E (default {DEFAULTS['p_max']})")
@@ -86,6 +103,9 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.add and a.force:
         p.error("--add keeps the study's outputs, --force deletes them: give one of them")
+    if a.preparation == "per-friction" and a.jamming_mu is not None:
+        p.error("--jamming-mu is the friction of the shared preparation; per-friction jams each mu with itself")
+    shared_mu = (DEFAULTS["jamming_mu"] if a.jamming_mu is None else a.jamming_mu) if a.preparation == "shared" else None
 
     from pre.jamming import jammed_rigid_scene
     from post.frames import read_frames_table
@@ -93,7 +113,7 @@ def main(argv=None) -> int:
     from pre.scene import neo_hookean_material
 
     w = Path(a.workdir)
-    if any(k < 0 or k > 1 for k in a.kappa) or any(m < 0 for m in [*a.mu, a.jamming_mu or 0.0]) or a.n < 2:
+    if any(k < 0 or k > 1 for k in a.kappa) or any(m < 0 for m in [*a.mu, shared_mu or 0.0]) or a.n < 2:
         p.error("expected 0 <= kappa <= 1, mu >= 0, jamming mu >= 0 and n >= 2")
     pressures = a.pressures or list(np.geomspace(a.p_min, a.p_max, a.stages))
     if any(x <= 0 for x in pressures) or any(np.diff(pressures) <= 0):
@@ -102,7 +122,7 @@ def main(argv=None) -> int:
     settings = {"study": "mixture_compaction", "n": a.n, "element": a.element, "elements": a.elements,
                 "volumetric": neo_hookean_material(a.element, a.volumetric)["volumetric"],
                 "pressures_over_E": [float(x) for x in pressures], "young": 1.0, "poisson": 0.495,
-                "overrides": overrides}
+                "overrides": overrides, "preparation": a.preparation, "jamming_mu": shared_mu}
     if a.add:
         before = _study_to_extend(p, w / "study.json", settings)
     else:
@@ -120,7 +140,7 @@ def main(argv=None) -> int:
     runs, jams = [], []
     t_start = time.perf_counter()
     for mu in a.mu:
-        mu_jam = mu if a.jamming_mu is None else a.jamming_mu
+        mu_jam = mu if shared_mu is None else shared_mu
         for seed in a.seeds:
             if all(run_name(kappa, mu, seed) in kept for kappa in a.kappa):
                 continue
@@ -135,10 +155,14 @@ def main(argv=None) -> int:
                                                  overrides={"solver.time_step": 0.1}, log=lambda msg: None)
                 equilibrated = read_frames_table(rigid_dir / "jamming" / "out")[-1].equilibrated
                 jammed[(mu_jam, seed)] = {"mu": mu_jam, "seed": seed, "scene": str(rigid_scene.relative_to(w)),
-                                          "equilibrated": equilibrated, "seconds": round(time.perf_counter() - t0, 1)}
+                                          "equilibrated": equilibrated, "seconds": round(time.perf_counter() - t0, 1),
+                                          "measures": jammed_measures(rigid_dir / "jamming" / "out", mu_jam)}
                 jams.append(jammed[(mu_jam, seed)])
                 print(f"jammed mu = {mu_jam:g}, seed {seed}: {rigid_scene} ({time.perf_counter() - t0:.1f} s"
                       f"{'' if equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
+            jam = jammed[(mu_jam, seed)]
+            if "measures" not in jam:  # a jamming recorded before its measures were
+                jam["measures"] = jammed_measures((w / jam["scene"]).parent / "jamming" / "out", mu_jam)
             from compute.scene import read_scene
 
             bounds = read_scene(rigid_scene).walls.bounds
@@ -153,11 +177,15 @@ def main(argv=None) -> int:
                                              n_elements=a.elements, volumetric=a.volumetric, parameters=params)
                 radii = np.asarray(read_scene(folder).radius)
                 actual = float(np.sum(radii[soft] ** 2) / np.sum(radii**2))
+                prepared = None if jam["measures"] is None else {
+                    "phi": prepared_phi(folder), **{k: v for k, v in jam["measures"].items() if k.startswith("Z")}}
                 runs.append({"name": name, "kappa": kappa, "mu": mu, "jamming_mu": mu_jam, "seed": seed,
                              "n_soft": int(soft.sum()),
                              "kappa_actual": round(actual, 6), "scene": str(folder.relative_to(w)),
-                             "out": str((w / "runs" / name / "out").relative_to(w))})
-                print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})", flush=True)
+                             "out": str((w / "runs" / name / "out").relative_to(w)), "prepared": prepared})
+                print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})"
+                      + (f", prepared phi0 = {prepared['phi']:.4f}, Z0 = {prepared['Z']:.3f}" if prepared else ""),
+                      flush=True)
     study = {**settings, "jamming": before["jamming"] + jams, "runs": before["runs"] + runs,
              "pre_seconds": round(before["pre_seconds"] + time.perf_counter() - t_start, 1)}
     (w / "study.json").write_text(json.dumps(study, indent=1) + "\n")
@@ -165,15 +193,53 @@ def main(argv=None) -> int:
     return 0
 
 
+def prepared_phi(scene_folder: Path) -> float:
+    """φ of a scene as post measures it on a frame (post.measures): rigid disks π r², soft disks by
+    their element areas (a T3 disk is its inscribed boundary polygon, less than π r²), over the
+    box of the scene's walls. Why: the runs' φ is measured so, and φ₀ must be on the same scale."""
+    from compute.scene import read_scene
+    from post import measures
+
+    scene = read_scene(scene_folder)
+    rigid = np.zeros(scene.n_bodies, dtype=bool)
+    rigid[scene.rigid_ids] = True
+    offsets = np.cumsum([0] + [len(d.points) for d in scene.deformable])
+    points = np.concatenate([d.points for d in scene.deformable] + [np.empty((0, 2))])
+    meshes = [(d.cells + offset, np.full(len(d.cells), d.body)) for d, offset in zip(scene.deformable, offsets)]
+    areas = measures.particle_areas(np.asarray(scene.radius), rigid, points, meshes)
+    return measures.packing_fraction(areas, measures.box_area(np.asarray(scene.walls.bounds)))
+
+
+def jammed_measures(out: Path, friction: float, threshold: float = 1e-9) -> dict | None:
+    """The last frame of the jamming run ``out`` measured by post (post.table.measure_frame,
+    rattlers by the rule of the jamming ``friction``, active contacts fn > ``threshold`` x mean fn,
+    post.py's default): {"frame", "phi" (the rigid packing's), "min_contacts", and every Z column}.
+    None, with a note, when the frame is not there (a study carried without its frames)."""
+    from post.errors import OutputError
+    from post.frames import read_frame, read_frames_table
+    from post.measures import default_min_contacts
+    from post.table import measure_frame
+
+    try:
+        record = read_frames_table(out)[-1]
+        row = measure_frame(read_frame(out, record), default_min_contacts(friction), threshold)
+    except OutputError as exc:
+        print(f"no prepared phi0, Z0: the jamming frame is not readable ({exc})", flush=True)
+        return None
+    return {"frame": record.frame, "phi": row["phi"], "min_contacts": default_min_contacts(friction),
+            **{k: v for k, v in row.items() if k.startswith("Z")}}
+
+
 def _study_to_extend(p, path: Path, settings: dict) -> dict:
-    """The study of ``path`` (--add), after checking that its settings are ``settings``."""
+    """The study of ``path`` (--add), after checking that its settings are ``settings`` (a field
+    missing from it holds its LEGACY_SETTINGS value)."""
     if not path.is_file():
         p.error(f"--add: {path} not found (run pre.py without --add first)")
     study = json.loads(path.read_text())
     for key, value in settings.items():
-        if study.get(key) != value:
-            p.error(f"--add: {path}: field '{key}' is {study.get(key)!r}, expected {value!r} as given here "
-                    f"(the runs of one study share their settings)")
+        if study.get(key, LEGACY_SETTINGS.get(key)) != value:
+            p.error(f"--add: {path}: field '{key}' is {study.get(key, LEGACY_SETTINGS.get(key))!r}, expected "
+                    f"{value!r} as given here (the runs of one study share their settings)")
     return study
 
 

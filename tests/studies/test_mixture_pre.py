@@ -70,3 +70,105 @@ def test_mixture_scene_from_rigid_scene(tmp_path):
     soft_material = scene.materials["soft"]
     assert (soft_material.young, soft_material.poisson, soft_material.kind) == (1.0, 0.495, "neo_hookean")
     assert scene.loading.pressures == (1e-3, 1e-2) and scene.loading.gravity == (0.0, 0.0)
+
+
+# ------------------------------------------------------------------ the study's pre.py: the preparation
+
+def _pre(workdir, *extra):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    return subprocess.run([sys.executable, "-m", "studies.mixture_compaction.pre", "--workdir", str(workdir),
+                           "--n", "16", "--kappa", "0.5", "1", "--mu", "0", "0.2", "--pressures", "0.001", *extra],
+                          cwd=Path(__file__).resolve().parents[2], capture_output=True, text=True)
+
+
+def _phi_of_scene(scene) -> float:
+    """Σ π r² of the rigid disks + Σ of the soft triangles' areas (shoelace) from bodies.vtu, over
+    the box of scene.toml: computed here without the toolkit."""
+    import tomllib
+
+    import meshio
+
+    mesh = meshio.read(scene / "bodies.vtu")
+    area = 0.0
+    for block, radius in zip(mesh.cells, mesh.cell_data["radius"]):
+        if block.type == "vertex":
+            area += float(np.sum(np.pi * np.asarray(radius) ** 2))
+        else:
+            assert block.type == "triangle"
+            a, b, c = (mesh.points[block.data[:, k], :2] for k in range(3))
+            area += float(np.sum(np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+                                        - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))) / 2)
+    w = tomllib.loads((scene / "scene.toml").read_text())["walls"]
+    return area / ((w["xmax"] - w["xmin"]) * (w["ymax"] - w["ymin"]))
+
+
+def _Z_of_last_frame(out, n_particles: int, threshold: float = 1e-9) -> float:
+    """2 N_c / N_p (a wall contact counting half) from the last frame's contacts VTU: one contact
+    per pair of bodies with fn > threshold x the mean positive fn."""
+    import meshio
+
+    from compute.output import read_frame_rows
+
+    frame = int(read_frame_rows(out / "frames.csv")[-1]["frame"])
+    mesh = meshio.read(out / "frames" / f"contacts_{frame:05d}.vtu")
+    data = {k: np.concatenate([np.asarray(b).reshape(len(b), -1)[:, 0] for b in mesh.cell_data[k]])
+            for k in ("body_i", "body_j", "fn")}
+    active = data["fn"] > threshold * data["fn"][data["fn"] > 0].mean()
+    pairs = {tuple(sorted((int(i), int(j)))) for i, j in zip(data["body_i"][active], data["body_j"][active])}
+    return sum(2 if i >= 0 else 1 for i, j in pairs) / n_particles
+
+
+def test_shared_preparation_one_sample_for_both_frictions(tmp_path):
+    """The default: one packing jammed with μ = 0.2, one choice of soft disks, compacted with μ = 0
+    and 0.2; φ₀ and Z₀ of that prepared sample, the same for both frictions: φ₀ as post measures
+    it (soft disks by their element areas), Z₀ counted on the jamming's last frame."""
+    import json
+
+    from compute.scene import read_scene
+
+    done = _pre(tmp_path)
+    assert done.returncode == 0, done.stderr
+    study = json.loads((tmp_path / "study.json").read_text())
+    assert (study["preparation"], study["jamming_mu"]) == ("shared", 0.2)
+    (jam,) = study["jamming"]
+    assert jam["mu"] == 0.2 and jam["measures"]["min_contacts"] == 2
+    runs = {(r["kappa"], r["mu"]): r for r in study["runs"]}
+    assert len(runs) == 4 and {r["jamming_mu"] for r in runs.values()} == {0.2}
+    Z = _Z_of_last_frame(tmp_path / "rigid" / "mu0.2_s1" / "jamming" / "out", 16)
+    for kappa in (0.5, 1):
+        frictionless, frictional = runs[(kappa, 0.0)], runs[(kappa, 0.2)]
+        assert frictionless["prepared"] == frictional["prepared"]
+        a, b = (read_scene(tmp_path / r["scene"]) for r in (frictionless, frictional))
+        assert [d.body for d in a.deformable] == [d.body for d in b.deformable]  # the same soft disks
+        prepared = frictional["prepared"]
+        assert prepared["phi"] == pytest.approx(_phi_of_scene(tmp_path / frictional["scene"]), rel=1e-12)
+        assert prepared["Z"] == pytest.approx(Z, rel=1e-12)
+        assert prepared["Z_no_rattlers"] >= prepared["Z"]  # rattlers have fewer contacts than the mean
+    # T3 disks are their inscribed polygons: all-soft phi below the rigid packing's by that ratio
+    # for 20 boundary segments, sin(2 pi/20) / (2 pi/20) (the 92-triangle reference mesh)
+    ratio = runs[(1, 0.2)]["prepared"]["phi"] / jam["measures"]["phi"]
+    assert ratio == pytest.approx(np.sin(2 * np.pi / 20) / (2 * np.pi / 20), rel=1e-9)
+
+    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--preparation", "per-friction")
+    assert bad.returncode == 2 and "field 'preparation'" in bad.stderr
+
+
+def test_per_friction_preparation_jams_each_friction(tmp_path):
+    import json
+
+    refused = _pre(tmp_path, "--preparation", "per-friction", "--jamming-mu", "0.2")
+    assert refused.returncode == 2 and "--jamming-mu" in refused.stderr
+    done = _pre(tmp_path, "--preparation", "per-friction")
+    assert done.returncode == 0, done.stderr
+    study = json.loads((tmp_path / "study.json").read_text())
+    assert study["preparation"] == "per-friction" and study["jamming_mu"] is None
+    assert sorted(j["mu"] for j in study["jamming"]) == [0.0, 0.2]
+    assert {j["mu"]: j["measures"]["min_contacts"] for j in study["jamming"]} == {0.0: 3, 0.2: 2}
+    for r in study["runs"]:
+        assert r["jamming_mu"] == r["mu"]
+        Z = _Z_of_last_frame(tmp_path / "rigid" / f"mu{r['mu']:g}_s1" / "jamming" / "out", 16)
+        assert r["prepared"]["Z"] == pytest.approx(Z, rel=1e-12)
+        assert r["prepared"]["phi"] == pytest.approx(_phi_of_scene(tmp_path / r["scene"]), rel=1e-12)
