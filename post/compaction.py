@@ -5,7 +5,9 @@ Input: a study description (``study.json`` written by the mixture study's pre st
 with the same keys: ``runs`` = [{name, kappa, mu, seed, out}], optional ``young``) and the per-run
 measures tables (:func:`measure_runs`, post.table). Output: a :class:`Compaction` record.
 
-- Table 1: φ₀, Z₀ per (κ, μ), the first equilibrated frame of each run, averaged over seeds.
+- Table 1: φ₀, Z₀ per (κ, μ), averaged over seeds, of each run's prepared sample (its
+  ``prepared`` values in the study: the packing before any load) or of its first equilibrated
+  frame (``phi0`` of :func:`analyse`); both are in the table.
 - Platzer et al.: P(φ) = P₀ ln[(φ_max − φ₀)/(φ_max − φ)] per (κ, μ).
 - Eq. 5 (the paper's compaction law) with φ_max its only free parameter: b of Eq. 2 (the single
   particle), ξ, α of Z − Z₀ = ξ (φ − φ₀)^α (fitted over all runs, or per (κ, μ)), φ₀, Z₀.
@@ -59,7 +61,9 @@ class Group:
     """One (κ, μ): its points pooled over seeds and what was fitted to them.
 
     phi, P, Z, K (n,): the equilibrated points (P and K over E); phi0, Z0 (of the study's Z column)
-    and Z0_no_rattlers averaged over the seeds (``*_std``: their scatter, NaN with one seed);
+    and Z0_no_rattlers averaged over the seeds (``*_std``: their scatter, NaN with one seed), the
+    ones the fits use; ``phi0_prepared``, ``Z0_prepared`` and ``phi0_first_stage``,
+    ``Z0_first_stage``: both readings, seed-averaged (NaN where the study has no prepared values);
     platzer, coordination, eq5: post.fits results (None when a fit failed, see Compaction.notes); eq3, eq3_single (n,): the Eq. 3 predictions
     of K/E; errors: the row of errors.csv."""
 
@@ -76,6 +80,10 @@ class Group:
     Z0_std: float
     Z0_no_rattlers: float = np.nan
     Z0_no_rattlers_std: float = np.nan
+    phi0_prepared: float = np.nan
+    Z0_prepared: float = np.nan
+    phi0_first_stage: float = np.nan
+    Z0_first_stage: float = np.nan
     xi_alpha: tuple[float, float] = (np.nan, np.nan)
     platzer: fits.FitResult | None = None
     coordination: fits.FitResult | None = None
@@ -89,8 +97,8 @@ class Group:
 @dataclass
 class Compaction:
     """The analysis of a study: ``groups`` by (κ, μ), ``points`` (rows of curves.csv),
-    ``fit_rows`` (rows of fits.csv), the coordination law over all runs and the notes on what
-    could not be fitted."""
+    ``fit_rows`` (rows of fits.csv), the coordination law over all runs, the notes on what
+    could not be fitted, and ``phi0_from``: "prepared" or "first-stage", where φ₀, Z₀ come from."""
 
     law: SingleParticleLaw
     z_column: str
@@ -99,15 +107,20 @@ class Compaction:
     fit_rows: list[dict]
     coordination_all: fits.FitResult | None
     notes: list[str]
+    phi0_from: str = "first-stage"
 
     def table1(self, paper_phi0: dict | None = None, paper_Z0: dict | None = None) -> list[dict]:
         """Rows of table1.csv: φ₀, Z₀ (the study's Z column) and Z₀ without rattlers, with their seed
-        scatter, per (κ, μ), with the paper's values ({μ: {κ: value}}) when given."""
+        scatter, per (κ, μ), as the fits use them (``phi0_from``), and both readings (prepared,
+        first stage), with the paper's values ({μ: {κ: value}}) when given."""
         rows = []
         for g in self.groups.values():
             rows.append({"kappa": g.kappa, "mu": g.mu, "phi0": g.phi0, "phi0_std": g.phi0_std, "Z0": g.Z0,
                          "Z0_std": g.Z0_std, "Z0_no_rattlers": g.Z0_no_rattlers,
-                         "Z0_no_rattlers_std": g.Z0_no_rattlers_std, "n_points": len(g.phi), "n_seeds": len(g.seeds),
+                         "Z0_no_rattlers_std": g.Z0_no_rattlers_std, "phi0_from": self.phi0_from,
+                         "phi0_prepared": g.phi0_prepared, "Z0_prepared": g.Z0_prepared,
+                         "phi0_first_stage": g.phi0_first_stage, "Z0_first_stage": g.Z0_first_stage,
+                         "n_points": len(g.phi), "n_seeds": len(g.seeds),
                          "phi0_paper": (paper_phi0 or {}).get(g.mu, {}).get(g.kappa, ""),
                          "Z0_paper": (paper_Z0 or {}).get(g.mu, {}).get(g.kappa, "")})
         return rows
@@ -223,29 +236,51 @@ def _fit_row(law, kappa, mu, parameter, fit=None, value=None, shift=0.0) -> dict
             "rms": fit.rms if fit else np.nan, "rms_relative": fit.rms_relative if fit else np.nan}
 
 
-def _points(study: dict, tables: dict, z_column: str) -> list[dict]:
-    """One row per equilibrated frame of every run, with its run's φ₀, Z₀ (first equilibrated)."""
+def phi0_source(study: dict, tables: dict, phi0: str | None = None) -> str:
+    """Where φ₀, Z₀ come from: ``phi0`` ("prepared": each run's ``prepared`` values in the study,
+    measured on the sample before any load; "first-stage": its first equilibrated frame), or by
+    default "prepared" when every run of ``tables`` has them, else "first-stage" (a study written
+    before they were recorded). Asking "prepared" of a study without them is a ValueError."""
+    missing = [r["name"] for r in study["runs"] if r["name"] in tables and not r.get("prepared")]
+    if phi0 == "prepared" and missing:
+        raise ValueError(f"field 'prepared' (phi0, Z0 of the prepared sample, written by the mixture study's "
+                         f"pre.py) missing from runs {', '.join(missing)}: use the first stage")
+    if phi0 not in (None, "prepared", "first-stage"):
+        raise ValueError(f"phi0: expected 'prepared' or 'first-stage', got {phi0!r}")
+    return phi0 or ("first-stage" if missing else "prepared")
+
+
+def _points(study: dict, tables: dict, z_column: str, phi0: str = "first-stage") -> list[dict]:
+    """One row per equilibrated frame of every run, with its run's φ₀, Z₀ (``phi0``: "prepared"
+    or "first-stage", :func:`phi0_source`) and both readings of them."""
     young = float(study.get("young", 1.0))
     by_name = {r["name"]: r for r in study["runs"]}
     points = []
     for name, rows in tables.items():
         run = by_name[name]
         eq = [r for r in rows if r["equilibrated"]]
+        prepared = run.get("prepared") or {}
+        first = {"phi0": eq[0]["phi"], "Z0": eq[0][z_column], "Z0_no_rattlers": eq[0]["Z_no_rattlers"]} if eq else {}
+        ready = {"phi0": prepared.get("phi", np.nan), "Z0": prepared.get(z_column, np.nan),
+                 "Z0_no_rattlers": prepared.get("Z_no_rattlers", np.nan)}
         for r in eq:
             points.append({"name": name, "kappa": run["kappa"], "mu": run["mu"], "seed": run["seed"],
                            "stage": int(r["stage"]), "P_over_E": r["P"] / young, "P_walls_over_E": r["P_walls"] / young,
                            "pressure_applied": r["pressure_applied"], "phi": r["phi"], "Z": r[z_column],
-                           "K_over_E": r["K"] / young, "phi0": eq[0]["phi"], "Z0": eq[0][z_column],
-                           "Z0_no_rattlers": eq[0]["Z_no_rattlers"]})
+                           "K_over_E": r["K"] / young, **(ready if phi0 == "prepared" else first),
+                           "phi0_prepared": ready["phi0"], "Z0_prepared": ready["Z0"],
+                           "phi0_first_stage": first["phi0"], "Z0_first_stage": first["Z0"]})
     return points
 
 
 def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "Z", xi_alpha: str = "all",
-            fallback_xi_alpha: tuple[float, float] = (5.1, 0.5)) -> Compaction:
+            fallback_xi_alpha: tuple[float, float] = (5.1, 0.5), phi0: str | None = None) -> Compaction:
     """The analysis of the per-run measures ``tables`` ({run name: rows}) of ``study`` (module
     docstring). ``xi_alpha``: "all" (ξ, α of Eq. 5 fitted over all runs, as the paper) or
-    "group" (per (κ, μ)); ``fallback_xi_alpha`` where that fit fails (default: the paper's)."""
-    points = _points(study, tables, z_column)
+    "group" (per (κ, μ)); ``fallback_xi_alpha`` where that fit fails (default: the paper's);
+    ``phi0``: where φ₀, Z₀ come from (:func:`phi0_source`; default prepared when every run has it)."""
+    phi0_from = phi0_source(study, tables, phi0)
+    points = _points(study, tables, z_column, phi0_from)
     notes: list[str] = []
     fit_rows: list[dict] = []
 
@@ -301,7 +336,7 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
         groups[(kappa, mu)] = g
     fit_rows.append(_fit_row("single_particle (Eq. 2)", "all", "all", "b", value=law.b))
     fit_rows.append(_fit_row("single_particle (Eq. 2)", "all", "all", "phi_p_max", value=law.phi_p_max))
-    return Compaction(law, z_column, groups, points, fit_rows, glob, notes)
+    return Compaction(law, z_column, groups, points, fit_rows, glob, notes, phi0_from)
 
 
 def _group(kappa: float, mu: float, sel: list[dict]) -> Group:
@@ -313,10 +348,11 @@ def _group(kappa: float, mu: float, sel: list[dict]) -> Group:
         return float(x.mean()), float(x.std(ddof=1)) if len(seeds) > 1 else np.nan
 
     (phi0, phi0_std), (Z0, Z0_std), (Z0_nr, Z0_nr_std) = (over_seeds(k) for k in ("phi0", "Z0", "Z0_no_rattlers"))
+    readings = {k: over_seeds(k)[0] for k in ("phi0_prepared", "Z0_prepared", "phi0_first_stage", "Z0_first_stage")}
     return Group(kappa, mu, seeds, phi=np.array([p["phi"] for p in sel]), P=np.array([p["P_over_E"] for p in sel]),
                  Z=np.array([p["Z"] for p in sel]), K=np.array([p["K_over_E"] for p in sel]),
                  phi0=phi0, Z0=Z0, phi0_std=phi0_std, Z0_std=Z0_std, Z0_no_rattlers=Z0_nr,
-                 Z0_no_rattlers_std=Z0_nr_std)
+                 Z0_no_rattlers_std=Z0_nr_std, **readings)
 
 
 def _errors_and_eq3(g: Group, law: SingleParticleLaw) -> None:
@@ -380,7 +416,11 @@ def summary_markdown(study: dict, result: Compaction, reference: Reference, time
     times, statuses, reasons = times or {}, statuses or {}, reasons or {}
     lines = [f"# Mixture compaction: N = {study['n']}, {study['element']} x {study['elements']} elements, "
              f"P/E = {', '.join(f'{p:.3g}' for p in study['pressures_over_E'])}", "",
-             f"Z column: `{result.z_column}`. b = {law.b:.4g}, phi_p,max = {law.phi_p_max:.4g} from: {law.source}.", ""]
+             f"Z column: `{result.z_column}`. b = {law.b:.4g}, phi_p,max = {law.phi_p_max:.4g} from: {law.source}.", "",
+             "φ₀, Z₀: " + ("the prepared sample's (before any load; table1.csv also has the first stage's)"
+                          if result.phi0_from == "prepared" else
+                          "the first equilibrated stage's" + (" (table1.csv also has the prepared sample's)" if any(
+                              math.isfinite(g.phi0_prepared) for g in result.groups.values()) else "")) + ".", ""]
     lines += ["| κ | μ | seeds | φ₀ ± seed std (paper) | Z₀ ± seed std (paper) | Z₀ without rattlers | ξ, α (group) | "
               "φ_max Eq. 5 (± seed std) | φ_max Platzer (± seed std) | P₀/E | Eq. 5 err φ rms / max | "
               "Platzer err φ rms / max | Eq. 3 err K rms (φ_max(κ) / φ_p,max) | run time s |",

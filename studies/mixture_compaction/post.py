@@ -4,7 +4,10 @@ Per run: DIR/runs/<name>/out/post/measures.csv (post.table: φ, Z, stress from t
 contacts and from walls, K = φ dP/dφ on the equilibrated frames).
 
 Study level, in DIR/post/ (equilibrated frames only; seeds of one (κ, μ) pooled):
-- table1.csv: φ₀, Z₀ per (κ, μ) (first equilibrated stage, P/E = p_min), the paper's Table 1;
+- table1.csv: φ₀, Z₀ per (κ, μ), the paper's Table 1: by default the prepared sample's (the runs'
+  "prepared" values in study.json, before any load), else, and with --phi0 first-stage, the first
+  equilibrated stage's (P/E = p_min); the columns phi0_prepared, Z0_prepared, phi0_first_stage,
+  Z0_first_stage give both, phi0_from which one the fits use;
 - fits.csv: every fitted parameter (law, κ, μ, parameter, value, stderr, fitted φ range, RMS);
   Platzer et al. (P₀, φ_max) per (κ, μ); Z − Z₀ = ξ(φ − φ₀)^α per (κ, μ) and over all runs
   ("all"); Eq. 5 (φ_max only; b, ξ, α, Z₀, φ₀ given); the single-particle law used (b, φ_p,max);
@@ -114,6 +117,9 @@ def main(argv=None) -> int:
     p.add_argument("--xi-alpha", choices=("all", "group"), default="all",
                    help="xi, alpha of Eq. 5: fitted over all runs (default, as the paper) or per (kappa, mu)")
     p.add_argument("--threshold", type=float, default=1e-9, help="active contacts: fn > T x mean fn (default 1e-9)")
+    p.add_argument("--phi0", choices=("prepared", "first-stage"), default=None,
+                   help="phi0, Z0: of the prepared sample (default, when every run has it in study.json) or "
+                        "of the first equilibrated stage (the default for a study without prepared values)")
     a = p.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
 
@@ -125,7 +131,12 @@ def main(argv=None) -> int:
     if not tables:
         print("no run has output yet: nothing to analyse", file=sys.stderr)
         return 2
-    result = compaction.analyse(study, tables, law, a.z_column, a.xi_alpha, (PAPER.xi, PAPER.alpha))
+    try:
+        phi0 = compaction.phi0_source(study, tables, a.phi0)
+    except ValueError as exc:
+        p.error(f"{w / 'study.json'}: {exc}")
+    print(f"phi0, Z0: {phi0}")
+    result = compaction.analyse(study, tables, law, a.z_column, a.xi_alpha, (PAPER.xi, PAPER.alpha), phi0)
     target = w / "post"
     written = compaction.write_tables(result, target, PAPER.phi0, PAPER.Z0)
     figures = {"fig1_views.png": views(w, study, result), "fig2_compaction.png": plots.figure_compaction(result),

@@ -65,6 +65,34 @@ def test_table1_and_fit_rows(result):
     assert ("single_particle (Eq. 2)", "all", "b") in laws
 
 
+def test_phi0_of_the_prepared_sample_or_of_the_first_stage(study):
+    """φ₀, Z₀ of the runs' prepared sample (study.json "prepared") by default when every run has
+    them, else of the first equilibrated stage; table1 has both readings whichever the fits use."""
+    tables = {r["name"]: _rows(r["kappa"], r["seed"]) for r in study["runs"]}
+    ready = {"phi": PHI0 - 0.004, "Z": Z0 - 0.5, "Z_no_rattlers": Z0 - 0.2}
+    prepared = {**study, "runs": [{**r, "prepared": ready} for r in study["runs"]]}
+    result = compaction.analyse(prepared, tables, LAW)
+    assert result.phi0_from == "prepared"
+    for g in result.groups.values():
+        assert (g.phi0, g.Z0, g.Z0_no_rattlers) == (PHI0 - 0.004, Z0 - 0.5, Z0 - 0.2) and g.phi0_std == 0.0
+        assert g.phi0_first_stage == pytest.approx(PHI0 + 0.001) and g.Z0_first_stage == pytest.approx(Z0)
+        assert all(p["phi0"] == PHI0 - 0.004 for p in result.points if p["kappa"] == g.kappa)
+    row = result.table1()[0]
+    assert row["phi0_from"] == "prepared" and row["phi0_prepared"] == PHI0 - 0.004 and row["Z0_prepared"] == Z0 - 0.5
+    assert row["phi0_first_stage"] == pytest.approx(PHI0 + 0.001)
+    text = compaction.summary_markdown(prepared, result, Reference({}, {}, XI, ALPHA, B))
+    assert "φ₀, Z₀: the prepared sample's" in text and "| 0.5 | 0.2 | 2 | 0.807 ± 0.000" in text
+
+    first = compaction.analyse(prepared, tables, LAW, phi0="first-stage")
+    g = first.groups[(0.5, 0.2)]
+    assert first.phi0_from == "first-stage" and g.phi0 == pytest.approx(PHI0 + 0.001) and g.phi0_prepared == PHI0 - 0.004
+    # a study with a run without prepared values (written before they were): the first stage
+    partial = {**prepared, "runs": [study["runs"][0], *prepared["runs"][1:]]}
+    assert compaction.analyse(partial, tables, LAW).phi0_from == "first-stage"
+    with pytest.raises(ValueError, match=f"'prepared'.*{study['runs'][0]['name']}"):
+        compaction.analyse(partial, tables, LAW, phi0="prepared")
+
+
 def test_inverse_and_errors_of_an_exact_law():
     phi = np.linspace(0.82, 0.9, 7)
     model = lambda x: models.platzer_pressure(x, 0.05, 0.95, PHI0)  # noqa: E731

@@ -79,8 +79,12 @@ def test_three_stages_end_to_end(tmp_path):
         assert float(r["Z"]) == pytest.approx(Z, abs=1e-12)
         assert 0.70 < float(r["phi"]) < 0.90
     table1 = list(csv.DictReader(open(w / "post" / "table1.csv")))
-    assert float(table1[0]["phi0"]) == pytest.approx(float(rows[0]["phi"]))
-    assert float(table1[0]["Z0"]) == pytest.approx(float(rows[0]["Z"]))
+    # phi0, Z0 of the prepared sample (pre.py), the first stage's beside them
+    assert table1[0]["phi0_from"] == "prepared" and "phi0, Z0: prepared" in post.stdout
+    assert float(table1[0]["phi0"]) == pytest.approx(run["prepared"]["phi"])
+    assert float(table1[0]["Z0"]) == pytest.approx(run["prepared"]["Z"])
+    assert float(table1[0]["phi0_first_stage"]) == pytest.approx(float(rows[0]["phi"]))
+    assert float(table1[0]["Z0_first_stage"]) == pytest.approx(float(rows[0]["Z"]))
     fits = list(csv.DictReader(open(w / "post" / "fits.csv")))
     assert {(f["law"], f["parameter"]) for f in fits} >= {("eq5", "phi_max"), ("single_particle (Eq. 2)", "b")}
 
