@@ -38,6 +38,21 @@ def resumed(run_dir: Path):
             run.history.close()
 
 
+def step(stepper, state, *load):
+    """(the state after one step, its report) of a checkout's ``Stepper.step(state, *load)``:
+    steps return a new State since the step-records change; older checkouts advanced ``state``
+    in place and returned the report alone."""
+    out = stepper.step(state, *load)
+    return out if isinstance(out, tuple) else (state, out)
+
+
+def controlled_step(load_control, stepper, state, *args):
+    """(state, report, pressure, halvings) of a checkout's ``load_control.controlled_step``
+    (older checkouts changed ``state`` in place and returned the last three)."""
+    out = load_control.controlled_step(stepper, state, *args)
+    return out if len(out) == 4 else (state, *out)
+
+
 def emit(result: dict, json_path: Path | None) -> None:
     """Print ``result`` as one JSON line, and append it to ``json_path`` when given."""
     line = json.dumps(result)

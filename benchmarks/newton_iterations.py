@@ -107,7 +107,7 @@ def three_disks(folder: Path, h: float, steps: int = 8) -> dict:
     t0, end = time.perf_counter(), "ok"
     try:
         for _ in range(steps):
-            stepper.step(state, 0.05)
+            state, _ = checkout.step(stepper, state, 0.05)
     except Exception as exc:  # a failed step ends the case; it is part of the result
         end = f"{type(exc).__name__}: {str(exc)[:120]}"
     s = stepper.stats

@@ -82,11 +82,11 @@ def measure_one(scene: Path, warmup: int, steps: int) -> dict:
     state = model.initial_state()
     pressure = model.scene.loading.pressures[0]
     for _ in range(warmup):
-        stepper.step(state, pressure)
+        state, _ = stepper.step(state, pressure)
     seconds0, stats0 = dict(TIMES.seconds), dict(stepper.stats)
     t0 = time.perf_counter()
     for _ in range(steps):
-        stepper.step(state, pressure)
+        state, _ = stepper.step(state, pressure)
     wall = time.perf_counter() - t0
     phases = {p: TIMES.seconds.get(p, 0.0) - seconds0.get(p, 0.0) for p in PHASES}
     stats = {k: stepper.stats[k] - stats0.get(k, 0) for k in stepper.stats}

@@ -35,10 +35,16 @@ class OutputWriteError(RuntimeError):
 class SimulationError(RuntimeError):
     """A run went numerically wrong (NaN, inverted element, diverging solver).
 
-    Raised after what was written so far has been flushed; the message is a diagnosis.
+    Raised after what was written so far has been flushed; the message is a diagnosis. A failed
+    step's ``work`` (compute.stepping.step_stats.StepStats) is what its attempts spent.
     """
+
+    work = None
 
 
 class StepFailure(Exception):
     """A step attempt that must not be accepted (the message is the diagnosis): the step
-    control cuts the step, and raises :class:`SimulationError` when cutting does not help."""
+    control cuts the step, and raises :class:`SimulationError` when cutting does not help.
+    ``work`` (compute.stepping.step_stats.StepStats): what the attempt spent before it failed."""
+
+    work = None

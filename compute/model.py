@@ -23,8 +23,8 @@ class Model:
 
     ``rigid`` (RigidDisks, possibly empty), ``walls`` (Walls), ``soft`` (list of SoftBodies, one
     per reference mesh and material); ``groups`` all of them in dof order; ``families`` the
-    contact families present; ``friction`` (n_mat, n_mat); ``active_set_newton`` whether steps go
-    through compute.stepping.active_set (the comment where it is set says when). Soft-node arrays for the contact
+    contact families present; ``friction`` (n_mat, n_mat); ``moving_rigid`` the number of rigid
+    disks that are not fixed. Soft-node arrays for the contact
     kernels: ``loop_nodes`` (n_b,) boundary loops (global node ids, CCW, body after body) with
     offsets ``loop_start`` (nd + 1,), ``loop_neighbours`` (N, 2) the previous and next node of
     each node in its loop (-1 for interior nodes), ``node_body`` (N,) soft index of each node, ``soft_ids``
@@ -47,10 +47,7 @@ class Model:
         self.groups = [self.rigid, self.walls, *self.soft]
         self.n_dofs = self.groups[-1].dofs.stop
         self.friction = scene.friction
-        # steps by the active-set Newton (compute.stepping.active_set): one soft body, its rotation
-        # held, alone with the walls, no friction (its contact problem is one small dense block)
-        self.active_set_newton = bool(scene.solver.hold_rotation and len(scene.deformable) == 1
-                                      and not np.any(~self.rigid.fixed) and not np.any(scene.friction))
+        self.moving_rigid = int(np.count_nonzero(~self.rigid.fixed))
         self.skin = scene.solver.skin
         kinds = {g.kind for g in self.groups if len(g)}
         self.families = families_of(kinds, scene.solver.rigid_soft_rows)

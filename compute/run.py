@@ -208,10 +208,12 @@ class Run:
     def _pressure_stage(self, pressure: float) -> str | None:
         """Run the stage to its end; the diagnosis when it stalled (compute.stall: the run ends
         there), else None."""
-        load, st = self.scene.loading, self.state
-        previous = load.pressures[st.stage - 1] if st.stage else 0.0
+        load = self.scene.loading
+        previous = load.pressures[self.state.stage - 1] if self.state.stage else 0.0
         while True:
-            rep, applied, halvings = load_control.controlled_step(self.stepper, st, previous, pressure, self.log)
+            self.state, rep, applied, halvings = load_control.controlled_step(self.stepper, self.state, previous,
+                                                                              pressure, self.log)
+            st = self.state
             phi = self._record(rep, applied, halvings)
             st.phi_window = np.append(st.phi_window, phi)[-(load.check_every + 1):]
             ramped = st.load_fraction >= 1.0
@@ -244,14 +246,15 @@ class Run:
         return None
 
     def _velocity_stage(self) -> None:
-        load, st = self.scene.loading, self.state
+        load = self.scene.loading
         n = int(round(load.duration / self.stepper.h))
-        while st.stage_steps < n:
-            self._record(self.stepper.step(st, 0.0, load.velocity), 0.0, 0)
+        while self.state.stage_steps < n:
+            self.state, rep = self.stepper.step(self.state, 0.0, load.velocity)
+            self._record(rep, 0.0, 0)
             self._periodic_checkpoint()
         self.write_frame(0.0, equilibrated=False)
         self.progress.stage_done()
-        st.stage = 1
+        self.state.stage = 1
 
     def _record(self, rep, pressure: float, halvings: int) -> float:
         """History row and frames after an accepted step; returns its φ. A step whose φ passes 1

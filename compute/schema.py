@@ -177,6 +177,11 @@ SOLVER = (
     Key("hold_rotation", "bool", "hold each soft body's angular momentum about its centroid at zero (a torque "
         "multiplier): removes the rigid rotation that frictionless contacts leave free and that pressure makes "
         "unstable (compute/bodies/soft.py); not for scenes where soft bodies should turn", default=False),
+    Key("step", "str", "step strategy (compute/stepping/strategies.py): fixed_point, the Newton loop around a "
+        "complete contact solve, for any scene; active_set, a semismooth Newton with the contact conditions "
+        "inside the iteration, for one soft body with hold_rotation, no friction and no movable rigid disk; auto: "
+        "active_set where it applies, else fixed_point (docs/ARCHITECTURE.md)",
+        options=("auto", "fixed_point", "active_set"), default="auto"),
 )
 
 OUTPUT = (

@@ -13,7 +13,10 @@ import numpy as np
 
 @dataclass
 class State:
-    """Everything a step reads and writes; a checkpoint saves exactly this.
+    """Everything a step reads and writes; a checkpoint saves exactly this. A step (and each of
+    its attempts, compute.stepping) does not change the State it is given: it returns a new one
+    (``dataclasses.replace``), so that a failed attempt leaves nothing to restore; the run's
+    program (compute.run, load and stall bookkeeping) updates its fields between steps.
 
     ``q``, ``v`` (n_dofs,); ``stage`` index into the loading program; ``stage_steps`` steps
     done in the current stage; ``phi_window`` φ after each of the stage's last steps, at most

@@ -56,7 +56,7 @@ def main() -> None:
             detection.detect(m, st)
         pairs = st.pairs[fam.name].copy()
         before = fam.rows(m, st.q, pairs, None)
-        rep = run.stepper.step(st, args.pressure)
+        st, rep = run.stepper.step(st, args.pressure)
         un = np.sum(before.hn * np.where(before.dof >= 0, st.v[before.dof], 0.0), axis=1)
         predicted = before.gap + rep.h * un
         after = fam.rows(m, st.q, pairs, None)

@@ -19,6 +19,10 @@ inactive rows are open. The KKT system is solved with scipy's sparse LU (slow pe
 the question is the number of iterations). The step control, load control and stage logic are
 the toolkit's.
 
+It is written against the step interface before the step records (groups kept their step data
+as attributes, moreau_jean dispatched to ``solve_step``): run it from a git worktree of commit
+3ca8967 or earlier. Its result became compute/stepping/active_set.py.
+
     python benchmarks/experiments/semismooth_step.py SCENE OUT [--active-set predicted|warm]
         [--matrix exact|stabilised|hybrid] [--hybrid-switch 1e-4] [--no-line-search] [--hold-rotation]
 

@@ -57,10 +57,13 @@ def main() -> None:
 
     with checkout.resumed(a.run) as run:
         st, pressures, m = run.state, run.scene.loading.pressures, run.model
-        step = lambda: load_control.controlled_step(run.stepper, st, pressures[st.stage - 1] if st.stage else 0.0,  # noqa: E731
-                                                    pressures[st.stage], lambda msg: None)
+
+        def step():
+            return checkout.controlled_step(load_control, run.stepper, st, pressures[st.stage - 1] if st.stage else 0.0,
+                                            pressures[st.stage], lambda msg: None)[0]
+
         for _ in range(a.steps_before):
-            step()
+            st = step()
         q, depth = st.q.copy(), st.cut_depth
         print(f"step {st.step + 1}, stage {st.stage}, phi {m.phi(q):.6f}")
         run.stepper.solver = probe = FirstProblem(run.stepper.solver)

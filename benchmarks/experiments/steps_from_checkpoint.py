@@ -79,8 +79,8 @@ def main() -> None:
         try:
             for _ in range(a.steps):
                 t = time.perf_counter()
-                rep, _, halvings = load_control.controlled_step(run.stepper, st, previous, pressures[st.stage],
-                                                                lambda msg: None)
+                st, rep, _, halvings = checkout.controlled_step(load_control, run.stepper, st, previous,
+                                                                pressures[st.stage], lambda msg: None)
                 result["step_seconds"].append(round(time.perf_counter() - t, 3))
                 result["newton_iterations"] += rep.newton_iterations
                 result["cuts"] += rep.cuts

@@ -56,8 +56,8 @@ def first_problem(run_dir: Path):
     with checkout.resumed(run_dir) as run:
         run.stepper.solver = probe = FirstProblem(run.stepper.solver)
         st, pressures = run.state, run.scene.loading.pressures
-        load_control.controlled_step(run.stepper, st, pressures[st.stage - 1] if st.stage else 0.0,
-                                     pressures[st.stage], lambda msg: None)
+        checkout.controlled_step(load_control, run.stepper, st, pressures[st.stage - 1] if st.stage else 0.0,
+                                 pressures[st.stage], lambda msg: None)
     return probe.problem
 
 

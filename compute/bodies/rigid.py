@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from compute.bodies.step_records import LinearStep
+
 
 class RigidDisks:
     """``ids`` (nr,) global body ids in increasing order; ``radii``, ``mass``, ``inertia``,
@@ -47,18 +49,11 @@ class RigidDisks:
         self.view(q)[:, :2] = self.initial_centres
 
     # --- the step -----------------------------------------------------------------------
-    def begin_step(self, q, v, h, theta, load) -> None:
+    def begin_step(self, q, v, h, theta, load) -> LinearStep:
         g = np.where(self.fixed[:, None], 0.0, np.asarray(load.gravity, float))
         dv = np.zeros((len(self.ids), 3))
         dv[:, :2] = h * g  # h M⁻¹ (m g)
-        self._v_free = v[self.dofs] + dv.ravel()
-
-    def free_velocity(self, v, out) -> None:
-        out[self.dofs] = self._v_free
-
-    def diagonal(self) -> tuple[np.ndarray, np.ndarray]:
-        """1x1 compliance blocks: dofs (3 nr,), values 1 / m (3 nr,)."""
-        return np.arange(self.dofs.start, self.dofs.stop), self.inverse_mass
+        return LinearStep(np.arange(self.dofs.start, self.dofs.stop), v[self.dofs] + dv.ravel(), self.inverse_mass)
 
     # --- measures -----------------------------------------------------------------------
     def centres(self, q) -> np.ndarray:

@@ -42,6 +42,7 @@ import numpy as np
 
 from compute.errors import StepFailure
 from compute.bodies.soft_matrix import IndefiniteMatrix, NewtonMatrices
+from compute.bodies.step_records import SoftStep
 from compute.fem.batch import BodyBatch
 from compute.threads import sized_to_group
 from compute.timing import TIMES
@@ -69,8 +70,8 @@ class SoftBodies:
         nb = len(self.batch.boundary)
         self.loop_nodes = (node0 + self.n_nodes * np.arange(self.B)[:, None] + self.batch.boundary).ravel()
         self.loop_start = nb * np.arange(self.B + 1)
-        self._gravity = None
-        self._v_free = None
+        self._gravity = None  # (gravity, M g (B, 2n)) of the last step
+        self._f = self._k = None  # work arrays of the Newton iterations, allocated at the first step
         self.hold_rotation = hold_rotation
 
     def __len__(self) -> int:
@@ -85,62 +86,58 @@ class SoftBodies:
 
     # --- the step -------------------------------------------------------------------------
     @sized_to_group
-    def begin_step(self, q, v, h, theta, load) -> None:
+    def begin_step(self, q, v, h, theta, load) -> SoftStep:
+        """The step's record (compute.bodies.step_records.SoftStep) at positions q and velocities
+        v (n_dofs,): what its Newton iterations read (x_n, v⁻, J_n, M g) and change."""
         if self.matrices is None:
             self.matrices = NewtonMatrices(self.batch)
         g = tuple(load.gravity)
-        if self._gravity is None or self._gravity[0] != g:
+        if self._gravity is None or self._gravity[0] != g:  # M g, kept while gravity does not change
             self._gravity = (g, self.batch.mass_times(np.tile(np.asarray(g, float), (self.B, self.n_nodes))))
-        self._h, self._theta = h, theta
-        self._x_n = self.nodes(q).copy()
-        self._v_n = v[self.dofs].reshape(self.B, -1).copy()
-        self._j_n = self.batch.jacobians(self._x_n)
+        x_n = self.nodes(q).copy()
+        v_n = v[self.dofs].reshape(self.B, -1).copy()
         if self.hold_rotation:
-            self.matrices.hold(self.rotation_momenta(self._x_n))
-        if self._v_free is None:
-            self._v_free = np.zeros_like(self._v_n)
-            self._f = np.zeros_like(self._v_n)  # work arrays of the Newton iterations
+            self.matrices.hold(self.rotation_momenta(x_n))
+        if self._f is None:  # work arrays of the Newton iterations
+            self._f = np.zeros_like(v_n)
             self._k = np.zeros_like(self.batch.mass_data)
-        self._settled = np.zeros(self.B, bool)
-        self._force = np.zeros(self.B, bool)
-        self._exact = False  # refresh() was called: the next iteration is a Newton one
-        self._stale = np.zeros(self.B, bool)
-        self.iteration = 0
+        return SoftStep(h, theta, x_n, v_n, self.batch.jacobians(x_n), self._gravity[1], np.zeros_like(v_n),
+                        settled=np.zeros(self.B, bool), force=np.zeros(self.B, bool), stale=np.zeros(self.B, bool))
 
-    def positions(self, v_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def positions(self, step: SoftStep, v_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(x_θ, x_new), both (B, n, 2), for end-of-step velocities v_b (B, 2n)."""
-        h, th = self._h, self._theta
-        dx = h * ((1.0 - th) * self._v_n + th * v_b).reshape(self.B, self.n_nodes, 2)
-        return self._x_n + th * dx, self._x_n + dx
+        h, th = step.h, step.theta
+        dx = h * ((1.0 - th) * step.v_n + th * v_b).reshape(self.B, self.n_nodes, 2)
+        return step.x_n + th * dx, step.x_n + dx
 
     @sized_to_group
-    def free_velocity(self, v, out) -> None:
+    def free_velocity(self, step: SoftStep, v, out) -> None:
         """v_free = v - M̂⁻¹ R(v) of every unsettled body (module docstring), written to ``out``.
 
         The tangent (and so the check whether a kept factorisation is still close to M̂) is
         evaluated at the first iteration of a step, and later only for the bodies that must
         refactorise (no valid factorisation, or forced after a slow contraction); the other
         iterations need the internal force only."""
-        self.iteration += 1
-        h, th, batch = self._h, self._theta, self.batch
+        step.iteration += 1
+        h, th, batch = step.h, step.theta, self.batch
         vb = v[self.dofs].reshape(self.B, -1)
-        active = ~self._settled
+        active = ~step.settled
         if active.any():
-            x_theta, _ = self.positions(vb)
+            x_theta, _ = self.positions(step, vb)
             f, k = self._f, self._k
-            tangent = active & (self._force | ~self.matrices.valid) if self.iteration > 1 and not self._exact else active
-            limit = self.EXACT_CHANGE if self._exact else self.REFACTOR_CHANGE
-            self._exact = False
+            tangent = active & (step.force | ~self.matrices.valid) if step.iteration > 1 and not step.exact else active
+            limit = self.EXACT_CHANGE if step.exact else self.REFACTOR_CHANGE
+            step.exact = False
             with TIMES("assembly"):
                 ok = batch.internal_force_and_tangent(x_theta, tangent, f, k)
                 ok &= batch.internal_force(x_theta, active & ~tangent, f)
             if not ok.all():
                 b = int(np.flatnonzero(~ok)[0])
-                raise StepFailure(self._inverted(b, x_theta, "x_theta"))
-            residual = self.residual(vb, f)
+                raise StepFailure(self._inverted(step, b, x_theta, "x_theta"))
+            residual = self.residual(step, vb, f)
             if not np.isfinite(residual[active]).all():
                 b = int(np.flatnonzero(active & ~np.isfinite(residual).all(axis=1))[0])
-                raise StepFailure(f"body {self.ids[b]}: non-finite internal forces (Newton iteration {self.iteration})")
+                raise StepFailure(f"body {self.ids[b]}: non-finite internal forces (Newton iteration {step.iteration})")
             batch.effective_matrix(k, (h * th) ** 2, tangent)  # k <- M + h²θ² K_t on those rows
 
             def geometric(mask, x_theta=x_theta):
@@ -150,33 +147,33 @@ class SoftBodies:
 
             try:
                 with TIMES("factorisation"):
-                    refactored = self.matrices.update(k, geometric, (h, th), limit, self._force, tangent)
+                    refactored = self.matrices.update(k, geometric, (h, th), limit, step.force, tangent)
             except IndefiniteMatrix as exc:
                 b = int(exc.bodies[0])
-                ratio = (batch.jacobians(x_theta)[b] / self._j_n[b]).min(axis=1)
+                ratio = (batch.jacobians(x_theta)[b] / step.j_n[b]).min(axis=1)
                 worst = np.argsort(ratio)[:5]
                 raise StepFailure(f"body {', '.join(str(i) for i in self.ids[exc.bodies][:10])}: {exc}; its most "
                                   f"compressed elements {worst.tolist()} (J/J_n down to {ratio[worst[0]]:.3g}) "
-                                  f"(Newton iteration {self.iteration}, h = {h:.4g})") from None
-            self._stale = active & ~refactored
-            self._force[:] = False
+                                  f"(Newton iteration {step.iteration}, h = {h:.4g})") from None
+            step.stale = active & ~refactored
+            step.force[:] = False
             with TIMES("solves"):
-                step = self.matrices.solve(residual, active, vb)
-            self._v_free[active] = vb[active] - step[active]
-        out[self.dofs] = self._v_free.ravel()
+                correction = self.matrices.solve(residual, active, vb)
+            step.v_free[active] = vb[active] - correction[active]
+        out[self.dofs] = step.v_free.ravel()
 
-    def momentum_residual(self, v: np.ndarray) -> np.ndarray:
+    def momentum_residual(self, step: SoftStep, v: np.ndarray) -> np.ndarray:
         """R_b(v) (B, 2n) of every body at velocities v (n_dofs,), its internal forces evaluated
         at x_θ (no tangent, nothing kept); raises StepFailure where an element inverts."""
         vb = v[self.dofs].reshape(self.B, -1)
-        x_theta, _ = self.positions(vb)
+        x_theta, _ = self.positions(step, vb)
         f = np.zeros_like(vb)
         ok = self.batch.internal_force(x_theta, np.ones(self.B, bool), f)
         if not ok.all():
-            raise StepFailure(self._inverted(int(np.flatnonzero(~ok)[0]), x_theta, "x_theta"))
-        return self.residual(vb, f)
+            raise StepFailure(self._inverted(step, int(np.flatnonzero(~ok)[0]), x_theta, "x_theta"))
+        return self.residual(step, vb, f)
 
-    def hold_torques(self, v: np.ndarray, hr: np.ndarray) -> np.ndarray:
+    def hold_torques(self, step: SoftStep, v: np.ndarray, hr: np.ndarray) -> np.ndarray:
         """(B,) the torque the rotation hold applies to each body over the step, relative to the
         moments of its contact forces about its centroid: |ρᵀ (R(v) − H r)| / Σ_a |x_a − x̄| |(H r)_a|
         (angular impulses; ρ the rotation field about the centroid at x_n); 0 without a hold,
@@ -184,17 +181,17 @@ class SoftBodies:
         hr (n_dofs,) the contact impulses H r."""
         if not self.hold_rotation:
             return np.zeros(self.B)
-        arm, rho = self._rotation_field(self._x_n)
+        arm, rho = self._rotation_field(step.x_n)
         contact = hr[self.dofs].reshape(self.B, -1)
-        held = np.abs(np.einsum("ij,ij->i", rho, self.momentum_residual(v) - contact))
+        held = np.abs(np.einsum("ij,ij->i", rho, self.momentum_residual(step, v) - contact))
         scale = np.sum(np.linalg.norm(arm, axis=2) * np.linalg.norm(contact.reshape(self.B, -1, 2), axis=2), axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(scale > 0.0, held / np.where(scale > 0.0, scale, 1.0), np.where(held > 0.0, np.inf, 0.0))
 
-    def residual(self, vb: np.ndarray, f: np.ndarray) -> np.ndarray:
+    def residual(self, step: SoftStep, vb: np.ndarray, f: np.ndarray) -> np.ndarray:
         """R_b(v) = M_b (v - v⁻) + h f_int - h M_b g (B, 2n) of every body, for its velocities
         vb (B, 2n) and internal forces f (B, 2n) at x_θ (module docstring)."""
-        return self.batch.mass_times(vb - self._v_n) + self._h * f - self._h * self._gravity[1]
+        return self.batch.mass_times(vb - step.v_n) + step.h * f - step.h * step.gravity
 
     def rotation_momenta(self, x: np.ndarray) -> np.ndarray:
         """c_b = M_b ρ_b (B, 2n): ρ_b the rigid rotation field of body b about its centroid in
@@ -206,6 +203,10 @@ class SoftBodies:
         rotation field ρ = e_z × (x − x̄) (B, 2n) about it."""
         arm = x - self.batch.centroids(x)[:, None, :]
         return arm, np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(self.B, -1)
+
+    def held_directions(self) -> np.ndarray | None:
+        """c (B, 2n) of the rotation hold of this step (NewtonMatrices.hold), or None."""
+        return self.matrices.held
 
     def use_indefinite(self, on: bool) -> None:
         """Whether the next factorisations may be indefinite (NewtonMatrices.set_indefinite)."""
@@ -224,34 +225,39 @@ class SoftBodies:
         """Changes whenever some body of the group refactorises (compliance blocks to redo)."""
         return int(self.matrices.version.sum())
 
+    def factorisation_counts(self) -> tuple[int, int]:
+        """(numeric factorisations, stabilised ones) done so far by the group (statistics)."""
+        m = self.matrices
+        return (m.factorizations, m.stabilised) if m is not None else (0, 0)
+
     def forget_factorisations(self) -> None:
         """Start the next step without reused factorisations (see Stepper.restart_point)."""
         if self.matrices is not None:
             self.matrices.forget()
 
-    def refresh(self) -> None:
+    def refresh(self, step: SoftStep) -> None:
         """The next free_velocity assembles the tangent of every unsettled body and refactorises
         those whose M̂ changed by more than EXACT_CHANGE of its largest entry (a Newton iteration,
-        not a chord one through changes of up to REFACTOR_CHANGE). Why 1e-3 and not 0: on the
-        single particle 1.9-2.2 times fewer factorisations for 0-3 % more Newton iterations, and
-        the 1000-element disk's run 28 % shorter (benchmarks/results/active_set_single_particle.md)."""
-        self._exact = True
+        not a chord one through changes of up to REFACTOR_CHANGE). Why not 0: far fewer
+        factorisations for a few more Newton iterations
+        (benchmarks/results/active_set_single_particle.md, figures in design_figures.md)."""
+        step.exact = True
 
-    def contraction_was_slow(self) -> None:
+    def contraction_was_slow(self, step: SoftStep) -> None:
         """The last iteration contracted the correction too little: the bodies that kept an old
         factorisation refactorise at the next one."""
-        self._force |= self._stale
+        step.force |= step.stale
 
-    def settle(self, v_old, v_new, tol: float) -> None:
+    def settle(self, step: SoftStep, v_old, v_new, tol: float) -> None:
         """Mark the bodies whose position correction h θ |v_new - v_old| is below ``tol``."""
-        self._settled |= self.corrections(v_old, v_new) <= tol
+        step.settled |= self.corrections(step, v_old, v_new) <= tol
 
-    def corrections(self, v_old, v_new) -> np.ndarray:
+    def corrections(self, step: SoftStep, v_old, v_new) -> np.ndarray:
         """(B,) position correction h θ max |v_new - v_old| of each body of the group."""
-        return self._h * self._theta * np.abs(v_new[self.dofs] - v_old[self.dofs]).reshape(self.B, -1).max(axis=1)
+        return step.h * step.theta * np.abs(v_new[self.dofs] - v_old[self.dofs]).reshape(self.B, -1).max(axis=1)
 
     @sized_to_group
-    def compliance(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def compliance(self, step: SoftStep, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Dense blocks of M̂⁻¹ on the contact dofs ``dofs`` (sorted, unique, all in this group):
         (start (B + 1,), dofs (m,) global, values) in the layout of
         :meth:`compute.contact.compliance.Compliance.build`."""
@@ -264,7 +270,7 @@ class SoftBodies:
         if bad.any():
             b = int(np.searchsorted(start, np.flatnonzero(bad)[0], side="right") - 1)
             raise StepFailure(f"body {self.ids[b]}: effective matrix M + h^2 theta^2 K_t not positive definite on "
-                              f"its contact dofs (Newton iteration {self.iteration}, h = {self._h:.4g})")
+                              f"its contact dofs (Newton iteration {step.iteration}, h = {step.h:.4g})")
         return start, dofs, values
 
     @sized_to_group
@@ -275,16 +281,16 @@ class SoftBodies:
         return self.matrices.solve(rhs, touched) if touched.any() else np.zeros_like(rhs)
 
     @sized_to_group
-    def area_change(self, v, lo: float, hi: float):
+    def area_change(self, step: SoftStep, v, lo: float, hi: float):
         """None if every element keeps J / J_n within [lo, hi] at x_θ and x_new for velocities v;
         else (body id, elements (k,), smallest ratio) of the first body that does not."""
-        x_theta, x_new = self.positions(v[self.dofs].reshape(self.B, -1))
-        for x in (x_theta,) if self._theta == 1.0 else (x_theta, x_new):
-            span = self.batch.jacobian_ratio_range(x, self._j_n)
+        x_theta, x_new = self.positions(step, v[self.dofs].reshape(self.B, -1))
+        for x in (x_theta,) if step.theta == 1.0 else (x_theta, x_new):
+            span = self.batch.jacobian_ratio_range(x, step.j_n)
             bad = ~((span[:, 0] >= lo) & (span[:, 1] <= hi))
             if bad.any():
                 b = int(np.flatnonzero(bad)[0])
-                ratio = self.batch.jacobians(x)[b] / self._j_n[b]
+                ratio = self.batch.jacobians(x)[b] / step.j_n[b]
                 els = np.flatnonzero(~((ratio >= lo) & (ratio <= hi)).all(axis=1))
                 return int(self.ids[b]), els, float(np.nanmin(ratio))
         return None
@@ -327,12 +333,12 @@ class SoftBodies:
         return point, cell
 
     # --- diagnoses ---------------------------------------------------------------------------
-    def _inverted(self, b: int, x: np.ndarray, where: str) -> str:
+    def _inverted(self, step: SoftStep, b: int, x: np.ndarray, where: str) -> str:
         """Diagnosis of body b's inverted elements in the group's positions x (B, n, 2)."""
         els = np.flatnonzero(~(self.batch.jacobians(x)[b] > 0.0).all(axis=1))
         return (f"body {int(self.ids[b])}: {els.size} inverted element(s) at {where} "
-                f"{els[:10].tolist()}{' ...' if els.size > 10 else ''} (Newton iteration {self.iteration}, "
-                f"h = {self._h:.4g})")
+                f"{els[:10].tolist()}{' ...' if els.size > 10 else ''} (Newton iteration {step.iteration}, "
+                f"h = {step.h:.4g})")
 
 
 def _block_diagonals(start: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from compute.bodies.step_records import LinearStep
+
 INWARD = np.array([1.0, -1.0, 1.0, -1.0])
 
 
@@ -49,27 +51,20 @@ class Walls:
         q[self.dofs] = self.initial_bounds
 
     # --- the step -----------------------------------------------------------------------
-    def begin_step(self, q, v, h, theta, load) -> None:
+    def begin_step(self, q, v, h, theta, load) -> LinearStep:
         """Free velocity and compliance 1 / m̂ of the walls for this step (module docstring)."""
         if self.control == "velocity":
-            self._v_free = INWARD * load.wall_speed
-            self._inverse = np.zeros(4)
+            v_free = INWARD * load.wall_speed
+            inverse = np.zeros(4)
         else:
             b, vw = self.bounds(q), v[self.dofs]
             force = pressure_forces(b, load.pressure)
             c = damping_coefficients(b, load.pressure, self.damping, self.density, self.diameter)
             m_hat = self.mass + theta * h * c
-            self._v_free = vw + h * (force - c * vw) / m_hat
-            self._inverse = 1.0 / m_hat
-        self._v_free = np.where(self.held, 0.0, self._v_free)
-        self._inverse = np.where(self.held, 0.0, self._inverse)
-
-    def free_velocity(self, v, out) -> None:
-        out[self.dofs] = self._v_free
-
-    def diagonal(self) -> tuple[np.ndarray, np.ndarray]:
-        """1x1 compliance blocks: dofs (4,), values 1 / m̂ (4,)."""
-        return np.arange(self.dofs.start, self.dofs.stop), self._inverse
+            v_free = vw + h * (force - c * vw) / m_hat
+            inverse = 1.0 / m_hat
+        return LinearStep(np.arange(self.dofs.start, self.dofs.stop), np.where(self.held, 0.0, v_free),
+                          np.where(self.held, 0.0, inverse))
 
     def kinetic_energy(self, v) -> float:
         return float(0.5 * self.mass * np.sum(v[self.dofs] ** 2))

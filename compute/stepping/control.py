@@ -15,11 +15,11 @@ too large; the Gauss–Seidel solvers remove such a uniform excess only slowly
 
 The depth is kept between steps (``state.cut_depth``): the next step starts at the depth the
 last one ended with, and the depth goes down by one after ``GROW_AFTER`` steps that went no
-deeper (by a cut or after a slow step, below). Why: in a compacting soft mixture the steps that fail whole come
-in runs (a 500-disk mixture at P/E = 0.32: every few steps a whole step fails after its 25
-Newton iterations, some 50 s of a run of 2–10 s steps, while its halves converge); starting
-again from the whole step each time pays that failure again. A failure costs as much as 10–20
-good steps, hence the slow growth (benchmarks/results/soft_mixture_steps.md).
+deeper (by a cut or after a slow step, below). Why: in a compacting soft mixture the steps that
+fail whole come in runs (every few steps a whole step fails after all its Newton iterations
+while its halves converge); starting again from the whole step each time pays that failure
+again. A failure costs as much as many good steps, hence the slow growth
+(benchmarks/results/soft_mixture_steps.md; figures in benchmarks/results/design_figures.md).
 
 A step that converged but was slow, its accepted sub-steps having taken more than
 ``SLOW_ITERATIONS`` Newton iterations each and more than ``SLOW_SWEEPS`` contact-solve sweeps per
@@ -33,41 +33,16 @@ thresholds, judged per step on both counts, come from benchmarks/results/soft_mi
 
 from __future__ import annotations
 
-import copy
+from dataclasses import replace
 
 import numpy as np
 
 from compute.errors import SimulationError, StepFailure
+from compute.stepping.step_stats import StepStats, carrying, spent
 
 GROW_AFTER = 16  # steps without a new cut before the depth goes down by one
 SLOW_ITERATIONS = 10  # a step with more Newton iterations per accepted sub-step than this
 SLOW_SWEEPS = 30  # and more contact-solve sweeps per iteration than this sends the next ones deeper
-
-
-def snapshot(state):
-    """Everything a step attempt changes in ``state``."""
-    return (state.q.copy(), state.v.copy(), state.time, state.step,
-            None if state.q_detect is None else state.q_detect.copy(),
-            copy.deepcopy(state.pairs), copy.deepcopy(state.impulses))
-
-
-def restore(state, snap) -> None:
-    q, v, t, s, qd, pairs, imp = snap
-    state.q, state.v, state.time, state.step = q.copy(), v.copy(), t, s
-    state.q_detect = None if qd is None else qd.copy()
-    state.pairs = copy.deepcopy(pairs)
-    state.impulses = copy.deepcopy(imp)
-
-
-def counts(stats: dict) -> tuple[int, int]:
-    """(Newton iterations, contact-solve sweeps) counted so far in a stepper's ``stats``."""
-    return stats["newton_iterations"], stats["nlgs_sweeps"]
-
-
-def charge(rep, stats: dict, since: tuple[int, int]) -> None:
-    """Give the report ``rep`` the Newton iterations and sweeps counted in ``stats`` since
-    ``since`` (:func:`counts`): those of every attempt of the step, failed ones included."""
-    rep.newton_iterations, rep.sweeps = (now - then for now, then in zip(counts(stats), since))
 
 
 def slow(iterations: int, sweeps: int, sub_steps: int) -> bool:
@@ -76,67 +51,62 @@ def slow(iterations: int, sweeps: int, sub_steps: int) -> bool:
     return iterations > SLOW_ITERATIONS * sub_steps and sweeps > SLOW_SWEEPS * iterations
 
 
-def step_with_cuts(attempt, state, h: float, max_cuts: int, stats: dict):
-    """Advance ``state`` by h with ``attempt(state, h, deepest) -> StepReport`` (which raises
-    StepFailure; ``deepest``: d = ``max_cuts``) in sub-steps h / 2**d, d from ``state.cut_depth``,
-    one level deeper after each failing attempt (the rest of the step goes on at that depth); the
-    next step starts one level deeper still if this one was slow. Raises SimulationError (state
-    restored) when an attempt fails at depth ``max_cuts``. The report is the last sub-step's, with
-    the Newton iterations and sweeps of all the step's attempts (counted by them in ``stats``), its
-    ``cuts`` (failed attempts), ``sub_steps`` (accepted ones), and the largest contact
-    ``residual``, ``max_penetration`` and ``hold_torque`` of the accepted sub-steps (a penetration left at the
-    start of an early sub-step is not hidden by a later one's)."""
-    t0, s0 = state.time, state.step
-    since = counts(stats)
-    snap = snapshot(state)
+def step_with_cuts(attempt, state, h: float, max_cuts: int):
+    """The state h after ``state`` (which is left as it was) and the step's report, by
+    ``attempt(state, h, deepest) -> (State, StepReport)`` (which raises StepFailure carrying its
+    work; ``deepest``: d = ``max_cuts``) in sub-steps h / 2**d, d from ``state.cut_depth``, one
+    level deeper after each failing attempt (the rest of the step goes on at that depth); the
+    next step starts one level deeper still if this one was slow. Raises SimulationError carrying
+    the work of all attempts when an attempt fails at depth ``max_cuts``. The report is the last
+    sub-step's, with the work (``work``, Newton iterations and sweeps) of all the step's
+    attempts, failed ones included, its ``cuts`` (failed attempts), ``sub_steps`` (accepted
+    ones), and the largest contact ``residual``, ``max_penetration`` and ``hold_torque`` of the
+    accepted sub-steps (a penetration left at the start of an early sub-step is not hidden by a
+    later one's)."""
     depth0 = depth = min(state.cut_depth, max_cuts)
     units, done, rep, cuts, sub_steps = 2**max_cuts, 0, None, 0, 0  # progress in units of h / 2**max_cuts
-    iterations = sweeps = 0  # of the accepted sub-steps
+    work = accepted = StepStats()  # of all attempts, of the accepted sub-steps
     residual = penetration = torque = 0.0
-    over = h  # the step length the impulses in state.impulses are over
+    over = h  # the step length the impulses in the current state's memory are over
+    current = state
     while done < units:
-        over = _rescale_impulses(state, over, h / 2**depth)
-        before = snapshot(state)  # a failure restores impulses over the failed sub-step: `over`
-        its0, sweeps0 = counts(stats)
+        current, over = _rescale_impulses(current, over, h / 2**depth), h / 2**depth
         try:
-            rep = attempt(state, h / 2**depth, depth >= max_cuts)
-            residual = float(np.maximum(residual, rep.residual))  # NaN stays
-            penetration = max(penetration, rep.max_penetration)
-            torque = max(torque, rep.hold_torque)
-            done += units >> depth
-            sub_steps += 1
-            its1, sweeps1 = counts(stats)
-            iterations, sweeps = iterations + its1 - its0, sweeps + sweeps1 - sweeps0
+            current, rep = attempt(current, h / 2**depth, depth >= max_cuts)
         except StepFailure as exc:
+            work += spent(exc)
             if depth >= max_cuts:
-                restore(state, snap)
                 cut = f"; the step failed down to sub-steps h / {2**depth} = {h / 2**depth:.4g} (h = {h:.4g})" if depth else ""
-                raise SimulationError(f"step {s0 + 1}: {exc}{cut}") from None
-            restore(state, before)
-            stats["cuts"] += 1
+                raise carrying(SimulationError(f"step {state.step + 1}: {exc}{cut}"), work) from None
+            work += StepStats(cuts=1)
             cuts += 1
             depth += 1
+            continue  # from the state before the failed attempt (impulses over `over`)
+        work += rep.work
+        accepted += rep.work
+        residual = float(np.maximum(residual, rep.residual))  # NaN stays
+        penetration = max(penetration, rep.max_penetration)
+        torque = max(torque, rep.hold_torque)
+        done += units >> depth
+        sub_steps += 1
     rep.cuts, rep.sub_steps, rep.residual, rep.max_penetration = cuts, sub_steps, residual, penetration
     rep.hold_torque = torque
-    charge(rep, stats, since)
-    if slow(iterations, sweeps, sub_steps) and depth < max_cuts - 1:
+    rep.work, rep.newton_iterations, rep.sweeps = work, work.newton_iterations, work.sweeps
+    if slow(accepted.newton_iterations, accepted.sweeps, sub_steps) and depth < max_cuts - 1:
         depth += 1
-    state.cut_accepted = 0 if depth > depth0 else state.cut_accepted + 1
-    state.cut_depth = depth
-    if depth and state.cut_accepted >= GROW_AFTER:
-        state.cut_depth, state.cut_accepted = depth - 1, 0
-    state.time, state.step = t0 + h, s0 + 1
-    _rescale_impulses(state, over, h)  # impulses of the last sub-step: to forces x h
+    depth_accepted = 0 if depth > depth0 else state.cut_accepted + 1
+    if depth and depth_accepted >= GROW_AFTER:
+        depth, depth_accepted = depth - 1, 0
+    current = replace(_rescale_impulses(current, over, h),  # impulses of the last sub-step: to forces x h
+                      time=state.time + h, step=state.step + 1, cut_depth=depth, cut_accepted=depth_accepted)
     if rep.h != h:
         rep.contacts.impulse *= h / rep.h
-    return rep
+    return current, rep
 
 
-def _rescale_impulses(state, over: float, to: float) -> float:
-    """Rescale the warm-start impulses of ``state`` from a step of length ``over`` to one of
-    ``to`` (the same forces); returns ``to``."""
-    if to != over:
-        for fam in state.impulses:
-            state.impulses[fam] = state.impulses[fam] * (to / over)
-    return to
-
+def _rescale_impulses(state, over: float, to: float):
+    """``state`` with its warm-start impulses rescaled from a step of length ``over`` to one of
+    ``to`` (the same forces); ``state`` itself if they are equal."""
+    if to == over:
+        return state
+    return replace(state, impulses={fam: a * (to / over) for fam, a in state.impulses.items()})

@@ -18,7 +18,7 @@ every program that converged without load control converging the same way.
 from __future__ import annotations
 
 from compute.errors import SimulationError
-from compute.stepping import control
+from compute.stepping.step_stats import StepStats, carrying, spent
 
 MIN_INCREMENT = 2.0**-10  # floor of Δλ, a fraction of the stage's jump
 GROW_AFTER = 2  # accepted steps at one increment before it doubles
@@ -36,10 +36,11 @@ def applied(previous: float, target: float, fraction: float) -> float:
 
 def controlled_step(stepper, state, previous: float, target: float, log):
     """One accepted step of the stage from ``previous`` to ``target`` (module docstring); returns
-    (StepReport, applied pressure, number of increment halvings this step needed). The report's
-    Newton iterations and sweeps include those of the failed increments."""
+    (the new State, StepReport, applied pressure, number of increment halvings this step needed).
+    The report's work (Newton iterations and sweeps) includes that of the failed increments.
+    ``state`` keeps the increment a failure halved (its load ramp), nothing else."""
     halvings = 0
-    since = control.counts(stepper.stats)
+    failed = StepStats()  # work of the failed increments
     while True:
         remaining = 1.0 - state.load_fraction
         dl = min(state.load_increment, remaining)
@@ -47,23 +48,26 @@ def controlled_step(stepper, state, previous: float, target: float, log):
         pressure = applied(previous, target, fraction)
         splittable = remaining > 0.0 and dl > MIN_INCREMENT
         try:
-            rep = stepper.step(state, pressure)
+            new, rep = stepper.step(state, pressure)
         except SimulationError as exc:
             if not splittable:
-                raise SimulationError(
+                raise carrying(SimulationError(
                     f"stage {state.stage} (P = {target:.6g}): {exc}; at P = {pressure:.6g}, load increment "
                     f"{dl * (target - previous):.3g} ({dl:.3g} of the stage's jump from P = {previous:.6g}"
-                    f"{', its floor' if remaining > 0.0 else ', the stage load fully applied'})") from None
+                    f"{', its floor' if remaining > 0.0 else ', the stage load fully applied'})"),
+                    failed + spent(exc)) from None
+            failed += spent(exc)
             state.load_increment = max(0.5 * dl, MIN_INCREMENT)
             state.load_accepted = 0
             halvings += 1
             log(f"stage {state.stage}: step {state.step + 1} failed at P = {pressure:.6g}; load increment "
                 f"halved to {state.load_increment:.3g} of the jump ({exc})")
             continue
-        control.charge(rep, stepper.stats, since)
-        state.load_fraction = fraction
-        state.load_accepted += 1
-        if state.load_accepted >= GROW_AFTER and state.load_increment < 1.0:
-            state.load_increment = min(1.0, 2.0 * state.load_increment)
-            state.load_accepted = 0
-        return rep, pressure, halvings
+        rep.work = failed + rep.work
+        rep.newton_iterations, rep.sweeps = rep.work.newton_iterations, rep.work.sweeps
+        new.load_fraction = fraction
+        new.load_accepted += 1
+        if new.load_accepted >= GROW_AFTER and new.load_increment < 1.0:
+            new.load_increment = min(1.0, 2.0 * new.load_increment)
+            new.load_accepted = 0
+        return new, rep, pressure, halvings

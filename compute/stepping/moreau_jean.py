@@ -9,16 +9,20 @@ With h the time step and θ ∈ [1/2, 1]:
 1. detection (Verlet lists, rebuilt past the skin) and narrow phase at q_n: rows of H, gaps;
 2. every body group prepares the step (loads, x_n);
 3. rigid disks and walls only: one contact solve with the diagonal compliance; with soft bodies,
-   the Newton loop of :mod:`compute.stepping.newton` (one frictionless soft body with its
-   rotation held: the active-set Newton of :mod:`compute.stepping.active_set`);
-4. positions, time, contact memory.
+   the Newton iterations of the step strategy the scene names (:mod:`compute.stepping.strategies`:
+   the fixed-point loop of :mod:`compute.stepping.newton` or the active-set Newton of
+   :mod:`compute.stepping.active_set`);
+4. positions, time, contact memory: a new State (an attempt never changes the one it starts
+   from, so a failed attempt needs no restoring).
 
-With soft bodies a failing attempt is cut (:mod:`compute.stepping.control`).
+With soft bodies a failing attempt is cut (:mod:`compute.stepping.control`). The work of every
+attempt (compute.stepping.step_stats.StepStats) is returned with its report, or carried by its
+failure, and summed by the callers.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,8 +31,10 @@ from compute.contact import detection
 from compute.contact.rows import ContactRows, generalised_impulse
 from compute.errors import SimulationError, StepFailure
 from compute import solvers
-from compute.stepping import active_set, control
-from compute.stepping.newton import solve_step
+from compute.state import State
+from compute.stepping import control, strategies
+from compute.stepping.groups import StepGroups
+from compute.stepping.step_stats import StepStats, carrying, spent
 from compute.timing import TIMES
 
 
@@ -44,24 +50,30 @@ class StepReport:
     h: float = 0.0
     sub_steps: int = 1  # accepted sub-steps the step was taken in (compute.stepping.control)
     hold_torque: float = 0.0  # largest SoftBodies.hold_torques of the step (of a cut step: of its sub-steps)
+    work: StepStats = field(default_factory=StepStats)  # of all the step's attempts, failed ones included
 
 
 class Stepper:
     """Advances a :class:`compute.state.State` of a :class:`compute.model.Model` by one step of the
-    scene's time step ``h`` (a constant; cut sub-steps pass their own h down as arguments)."""
+    scene's time step ``h`` (a constant; cut sub-steps pass their own h down as arguments). The
+    model's body groups are reached through their protocols (``groups``,
+    compute.stepping.groups); ``strategy`` iterates a step's equations (compute.stepping.strategies,
+    the scene's ``solver.step``)."""
 
     MAX_CUTS = 4  # a step may be halved this many times before the run stops
 
     def __init__(self, model, solver=None):
         s = model.scene.solver
         self.model = model
+        self.groups = StepGroups(model.groups, model.n_dofs)
         self.h, self.theta = s.time_step, s.theta
         self.solver = solver or solvers.for_model(s, model)
+        self.strategy = strategies.for_model(s, model)
         self.newton_tolerance = s.newton_tolerance * model.diameter
         self.newton_max_iterations = s.newton_max_iterations
         self.gravity = tuple(model.scene.loading.gravity)
-        self._counts = {"steps": 0, "newton_iterations": 0, "cuts": 0, "nlgs_sweeps": 0, "backtracks": 0,
-                        "fallbacks": 0}
+        self.steps = 0
+        self.work = StepStats()  # of every attempt since the stepper was made, failed steps' too
 
     @property
     def stats(self) -> dict:
@@ -69,54 +81,62 @@ class Stepper:
         backtracks, fallbacks (attempts of the active-set Newton taken again by the fixed-point
         loop, compute.stepping.active_set), and the soft groups' numeric factorisations (all
         attempts, stabilised ones too)."""
-        return {**self._counts, "factorizations": sum(g.matrices.factorizations for g in self.model.soft if g.matrices),
-                "stabilised_factorizations": sum(g.matrices.stabilised for g in self.model.soft if g.matrices)}
+        w = self.work
+        factorizations, stabilised = self.groups.factorisation_counts()
+        return {"steps": self.steps, "newton_iterations": w.newton_iterations, "cuts": w.cuts,
+                "nlgs_sweeps": w.sweeps, "backtracks": w.backtracks, "fallbacks": w.fallbacks,
+                "factorizations": factorizations, "stabilised_factorizations": stabilised}
 
     def restart_point(self) -> None:
         """Make the next step depend on the state alone (called at checkpoints): soft groups drop
         the factorisations they would otherwise reuse, so that a run resumed from this
         checkpoint and the run that goes on from it take bitwise identical steps."""
-        for g in self.model.soft:
-            g.forget_factorisations()
+        self.groups.forget_factorisations()
 
-    def step(self, state, pressure: float, wall_speed: float = 0.0) -> StepReport:
-        """Advance ``state`` in place. Pressure control (walls pushed by ``pressure`` × length) or,
-        under velocity control, walls moving inward at ``wall_speed``."""
+    def step(self, state, pressure: float, wall_speed: float = 0.0) -> tuple[State, StepReport]:
+        """The state one step after ``state`` (which is left as it was) and the step's report.
+        Pressure control (walls pushed by ``pressure`` × length) or, under velocity control, walls
+        moving inward at ``wall_speed``. A failed step raises SimulationError carrying the work
+        it spent (``work``, StepStats)."""
         load = Load(pressure, wall_speed, self.gravity)
-        if self.model.nonlinear:
-            rep = control.step_with_cuts(lambda st, h, deepest: self._attempt(st, load, h, not deepest), state,
-                                         self.h, self.MAX_CUTS, self._counts)
-        else:
-            try:
-                rep = self._attempt(state, load, self.h)
-            except StepFailure as exc:
-                raise SimulationError(f"step {state.step + 1}: {exc}") from None
-        self._counts["steps"] += 1
-        return rep
+        try:
+            if self.groups.iterates:
+                new, rep = control.step_with_cuts(lambda st, h, deepest: self._attempt(st, load, h, not deepest),
+                                                  state, self.h, self.MAX_CUTS)
+            else:
+                try:
+                    new, rep = self._attempt(state, load, self.h)
+                except StepFailure as exc:
+                    raise carrying(SimulationError(f"step {state.step + 1}: {exc}"), spent(exc)) from None
+        except SimulationError as exc:
+            self.work += spent(exc)
+            raise
+        self.work += rep.work
+        self.steps += 1
+        return new, rep
 
-    def _attempt(self, state, load: Load, h: float, misses_fail: bool = True) -> StepReport:
+    def _attempt(self, state, load: Load, h: float, misses_fail: bool = True) -> tuple[State, StepReport]:
+        """One attempt at a step of size h from ``state``: the state after it (a new State; the
+        given one is not changed) and its report, or StepFailure carrying its work."""
         m, th = self.model, self.theta
+        state = replace(state, pairs=dict(state.pairs), impulses=dict(state.impulses))  # the memory it changes
         with TIMES("detection"):
             if detection.needs_detection(m, state):
                 detection.detect(m, state)
             contacts = detection.narrow_phase(m, state, branches=False)
-        for g in m.groups:
-            g.begin_step(state.q, state.v, h, th, load)
+        step = self.groups.begin_step(state.q, state.v, h, th, load)
         # linear groups only: one contact solve is exact
-        tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if m.nonlinear else (np.inf, 1)
-        solve = active_set.solve_step if m.active_set_newton else solve_step
-        v, report, iterations = solve(m, contacts, state.v, h, th, self.solver, tol, max_it, self._counts, misses_fail)
+        tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if step.iterates else (np.inf, 1)
+        v, report, work = self.strategy(step, contacts, state.v, self.solver, tol, max_it, misses_fail)
         if not np.all(np.isfinite(v)):
-            raise StepFailure(f"non-finite velocities after the contact solve (contact residual {report.residual:.3g} "
-                              f"after {report.iterations} sweeps)")
-        held = [g for g in m.soft if g.hold_rotation]
-        hr = generalised_impulse(contacts.dof, contacts.hn, contacts.ht, contacts.impulse, m.n_dofs) if held else None
-        torque = max((float(g.hold_torques(v, hr).max(initial=0.0)) for g in held), default=0.0)
-        state.q += h * ((1.0 - th) * state.v + th * v)
-        state.v = v
-        state.time += h
-        state.step += 1
+            raise carrying(StepFailure(f"non-finite velocities after the contact solve (contact residual "
+                                       f"{report.residual:.3g} after {report.iterations} sweeps)"), work)
+        hr = (generalised_impulse(contacts.dof, contacts.hn, contacts.ht, contacts.impulse, m.n_dofs)
+              if self.groups.holds_rotation else None)
+        torque = step.hold_torque(v, hr) if hr is not None else 0.0
         detection.store_impulses(m, state, contacts.impulse)
-        return StepReport(report.iterations, report.residual, int(np.count_nonzero(contacts.impulse[:, 0] > 0.0)),
-                          float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0, contacts,
-                          newton_iterations=iterations, h=h, hold_torque=torque)
+        new = replace(state, q=state.q + h * ((1.0 - th) * state.v + th * v), v=v, time=state.time + h,
+                      step=state.step + 1)
+        return new, StepReport(report.iterations, report.residual, int(np.count_nonzero(contacts.impulse[:, 0] > 0.0)),
+                               float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0, contacts,
+                               newton_iterations=work.newton_iterations, h=h, hold_torque=torque, work=work)

@@ -31,12 +31,13 @@ Devices that keep it robust:
   steps into hundreds of iterations and cuts.
 - A contact solve that ends above its tolerance (sweep limit, stall) is a miss; the second miss
   of a step fails it (the step control cuts it, and smaller steps pose easier contact
-  problems), rather than paying the sweep limit at every further iteration: a 30-disk mixture
-  step spent 46 s in ten such solves before its cut. At the deepest cut (``misses_fail``
+  problems), rather than paying the sweep limit at every further iteration (a mixture step
+  spent most of its time in such solves before its cut). At the deepest cut (``misses_fail``
   false) a miss no longer fails the step: the iteration goes on, and a step that converges with
   its last contact solve above tolerance is kept and reported with that residual (the run then
-  ends INCOMPLETE, compute.summary). Why: a 500-disk T6 mixture at P/E = 1 stopped on solves
-  ending at 1.17e-4 against 1e-4 after 2000 sweeps, at every depth down to h / 16.
+  ends INCOMPLETE, compute.summary). Why: a large T6 mixture at P/E = 1 stopped on solves
+  ending just above their tolerance after the sweep limit, at every depth of the step control
+  (figures in benchmarks/results/design_figures.md).
 - Backtracking: an update that would change some element's area by more than a factor
   1 / ``JACOBIAN_RATIO`` in one step is halved until it does not.
 - A correction that contracted by less than ``SLOW_CONTRACTION`` makes the bodies that kept an
@@ -54,6 +55,7 @@ from compute.contact.compliance import Compliance
 from compute.contact.problem import ContactProblem
 from compute.errors import StepFailure
 from compute.solvers.report import SolveReport
+from compute.stepping.step_stats import StepStats, carrying
 from compute.timing import TIMES
 
 ANDERSON = 4
@@ -63,116 +65,106 @@ MAX_BACKTRACKS = 12
 SLOW_CONTRACTION = 0.25
 
 
-def solve_step(model, contacts, v_minus, h: float, theta: float, solver, tol: float, max_iterations: int,
-               stats: dict, misses_fail: bool = True):
-    """End-of-step velocities (n_dofs,) and the last solve report, for the groups of ``model``
-    prepared for this step (``begin_step``). ``contacts`` holds the warm start and receives the
-    impulses. ``misses_fail``: whether the CONTACT_MISSES-th contact solve above tolerance fails
-    the step (module docstring)."""
-    n = model.n_dofs
-    diagonals = [g.diagonal() for g in model.groups if not g.nonlinear]
-    soft_dofs = contact_dofs(model, contacts)
-    v = np.zeros(n)
-    v_free = np.zeros(n)
-    for g in model.groups:
-        if not g.nonlinear:
-            g.free_velocity(v, v)
+def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int, misses_fail: bool = True):
+    """End-of-step velocities (n_dofs,), the last solve report and the attempt's work
+    (StepStats), for the groups of ``step`` (a GroupStep, compute.stepping.groups).
+    ``contacts`` holds the warm start and receives the impulses. ``misses_fail``: whether the
+    CONTACT_MISSES-th contact solve above tolerance fails the step (module docstring). A
+    StepFailure carries the work spent (StepStats, its ``work``)."""
+    its = sweeps = backtracks = 0
+    try:
+        n, h, theta = step.n_dofs, step.h, step.theta
+        soft_dofs = step.contact_dofs(contacts)
+        v = step.initial_velocity(v_minus)
+        v_free = np.zeros(n)
+        history: list = []
+        err_prev = np.inf
+        misses = 0
+        kept = None  # (problem, the factorisations its compliance blocks were made with)
+        y, y_stamp = None, None  # M̂⁻¹ H r of the last impulses, and the factorisations it was made with
+        for it in range(1, max_iterations + 1):
+            its += 1  # every iteration, those of failing attempts too
+            with TIMES("free velocity"):
+                step.free_velocity(v, v_free)
+            kept = contact_problem(step, contacts, soft_dofs, v_free, v_minus, kept)
+            problem, stamp = kept
+            if it > 1:
+                with TIMES("residuals"):
+                    if y_stamp != stamp:  # some body refactorised since y = M̂⁻¹ H r was computed
+                        y, y_stamp = step.compliance_times(problem.generalised_impulse(n)), stamp
+                    balance = h * theta * float(np.max(np.abs(v - v_free - y)))
+                    if balance <= tol:
+                        contact = solver.measure.error(problem, solver.tolerance, v)
+                        if contact <= solver.tolerance:
+                            report = SolveReport(v, report.iterations, contact)
+                            break
+            with TIMES("contact solve"):
+                report = solver.solve(problem)
+            sweeps += report.iterations
+            if step.iterates and not report.residual <= solver.tolerance:
+                misses += 1
+                if misses_fail and misses == CONTACT_MISSES:
+                    raise StepFailure(f"the contact solve missed its tolerance {solver.tolerance:.3g} {misses} times "
+                                      f"(natural-map error {report.residual:.3g} after {report.iterations} sweeps, "
+                                      f"Newton iteration {it})")
+            v_new = report.v
+            with TIMES("recovery"):  # soft bodies: v_b = v_free,b + M̂_b⁻¹ (H r)_b on all their dofs
+                y, y_stamp = step.compliance_times(problem.generalised_impulse(n)), stamp
+                step.recover(v_new, v_free, y)
+            if not np.all(np.isfinite(v_new)):
+                raise StepFailure(f"non-finite velocities at Newton iteration {it}")
+            err = h * theta * float(np.max(np.abs(v_new - v))) if n else 0.0
+            last = (v, v_new)
+            if err <= tol:
+                v, damped = _admissible(step, v, v_new)
+                backtracks += damped
+                break
+            step.settle(v, v_new, tol)
+            if ANDERSON:
+                if err > err_prev:
+                    history.clear()
+                v_new = _anderson(history, v, v_new)
+            v, damped = _admissible(step, v, v_new)
+            backtracks += damped
+            if it > 1 and err > 1e6 * max(err_prev, tol):
+                raise StepFailure(f"Newton diverges (position correction {err:.3g} after {err_prev:.3g}, iteration {it})")
+            if err > SLOW_CONTRACTION * err_prev:
+                step.contraction_was_slow()
+            err_prev = err
         else:
-            v[g.dofs] = v_minus[g.dofs]
-    history: list = []
-    err_prev = np.inf
-    misses = 0
-    stamp = None  # the factorisations the compliance blocks were made with
-    y, y_stamp = None, None  # M̂⁻¹ H r of the last impulses, and the factorisations it was made with
-    for it in range(1, max_iterations + 1):
-        stats["newton_iterations"] += 1  # every iteration, those of failing attempts too
-        with TIMES("free velocity"):
-            for g in model.groups:
-                g.free_velocity(v, v_free)
-        if (new := [g.factorisation_stamp() for g, _ in soft_dofs]) != stamp:
-            with TIMES("compliance"):
-                dense = [g.compliance(d) for g, d in soft_dofs if len(d)]
-                comp = Compliance.build(n, diagonals, dense)
-                problem = ContactProblem.build(contacts, comp, v_free, v_minus, h, theta)
-            stamp = new
-        if it > 1:
-            with TIMES("residuals"):
-                if y_stamp != stamp:  # some body refactorised since y = M̂⁻¹ H r was computed
-                    y, y_stamp = compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
-                balance = h * theta * float(np.max(np.abs(v - v_free - y)))
-                if balance <= tol:
-                    contact = solver.measure.error(problem, solver.tolerance, v)
-                    if contact <= solver.tolerance:
-                        report = SolveReport(v, report.iterations, contact)
-                        break
-        with TIMES("contact solve"):
-            report = solver.solve(problem)
-        stats["nlgs_sweeps"] += report.iterations
-        if model.nonlinear and not report.residual <= solver.tolerance:
-            misses += 1
-            if misses_fail and misses == CONTACT_MISSES:
-                raise StepFailure(f"the contact solve missed its tolerance {solver.tolerance:.3g} {misses} times "
-                                  f"(natural-map error {report.residual:.3g} after {report.iterations} sweeps, "
-                                  f"Newton iteration {it})")
-        v_new = report.v
-        with TIMES("recovery"):  # soft bodies: v_b = v_free,b + M̂_b⁻¹ (H r)_b on all their dofs
-            y, y_stamp = compliance_times(model, diagonals, problem.generalised_impulse(n)), stamp
-            for g in model.soft:
-                v_new[g.dofs] = v_free[g.dofs] + y[g.dofs]
-        if not np.all(np.isfinite(v_new)):
-            raise StepFailure(f"non-finite velocities at Newton iteration {it}")
-        err = h * theta * float(np.max(np.abs(v_new - v))) if n else 0.0
-        last = (v, v_new)
-        if err <= tol:
-            v = _admissible(model, v, v_new, h, stats)
-            break
-        for g, _ in soft_dofs:
-            g.settle(v, v_new, tol)
-        if ANDERSON:
-            if err > err_prev:
-                history.clear()
-            v_new = _anderson(history, v, v_new)
-        v = _admissible(model, v, v_new, h, stats)
-        if it > 1 and err > 1e6 * max(err_prev, tol):
-            raise StepFailure(f"Newton diverges (position correction {err:.3g} after {err_prev:.3g}, iteration {it})")
-        if err > SLOW_CONTRACTION * err_prev:
-            for g, _ in soft_dofs:
-                g.contraction_was_slow()
-        err_prev = err
-    else:
-        raise StepFailure(f"Newton did not converge in {max_iterations} iterations "
-                          f"(last position correction {err:.3g}, tolerance {tol:.3g}{_slowest(model, *last, tol)})")
-    return v, report, it
+            raise StepFailure(f"Newton did not converge in {max_iterations} iterations "
+                              f"(last position correction {err:.3g}, tolerance {tol:.3g}{_slowest(step, *last, tol)})")
+    except StepFailure as exc:
+        carrying(exc, StepStats(its, sweeps, backtracks))
+        raise
+    return v, report, StepStats(its, sweeps, backtracks)
 
 
-def _slowest(model, v, v_new, tol: float, shown: int = 5) -> str:
+def contact_problem(step, contacts, soft_dofs: list, v_free: np.ndarray, v_minus: np.ndarray, kept):
+    """(problem, stamp): the step's ContactProblem on the free velocity ``v_free`` (n_dofs,,
+    filled in place by the iterations, which the problem reads) and the factorisation stamp its
+    compliance blocks were made with. ``kept`` (problem, stamp) of the last iteration, or None,
+    is returned as it is while no body has refactorised since (compliance blocks unchanged).
+    ``soft_dofs`` the nonlinear groups' contact dofs (GroupStep.contact_dofs)."""
+    stamp = step.factorisation_stamp()
+    if kept is not None and kept[1] == stamp:
+        return kept
+    with TIMES("compliance"):
+        dense = [g.compliance(st, d) for g, st, d in soft_dofs if len(d)]
+        comp = Compliance.build(step.n_dofs, step.diagonals(), dense)
+        return ContactProblem.build(contacts, comp, v_free, v_minus, step.h, step.theta), stamp
+
+
+def _slowest(step, v, v_new, tol: float, shown: int = 5) -> str:
     """'; above it in body 3 (2.1e-07), ...': the soft bodies whose last correction exceeded
     ``tol``, largest first (at most ``shown``); '' if none did."""
-    c = np.concatenate([np.zeros(0)] + [g.corrections(v, v_new) for g in model.soft])
-    ids = model.soft_ids
+    ids, c = step.corrections(v, v_new)
     over = np.flatnonzero(c > tol)
     if not over.size:
         return ""
     top = over[np.argsort(c[over])[::-1][:shown]]
     more = f" and {over.size - shown} more" if over.size > shown else ""
     return "; above it in " + ", ".join(f"body {ids[i]} ({c[i]:.2g})" for i in top) + more
-
-
-def contact_dofs(model, contacts) -> list:
-    """[(soft group, sorted unique global dofs (m,) of the group that contact rows touch)]."""
-    d = np.unique(contacts.dof[contacts.dof >= model.node_dof0])
-    return [(g, d[(d >= g.dofs.start) & (d < g.dofs.stop)]) for g in model.soft]
-
-
-def compliance_times(model, diagonals: list, hr: np.ndarray) -> np.ndarray:
-    """M̂⁻¹ hr (n_dofs,) for a generalised impulse hr (n_dofs,): the 1x1 blocks ``diagonals`` of
-    the linear groups, batched solves of the soft ones."""
-    y = np.zeros_like(hr)
-    for dofs, inverse_mass in diagonals:
-        y[dofs] = inverse_mass * hr[dofs]
-    for g in model.soft:
-        y[g.dofs] = g.compliance_times(hr).ravel()
-    return y
 
 
 def _anderson(history: list, v: np.ndarray, g: np.ndarray) -> np.ndarray:
@@ -189,29 +181,27 @@ def _anderson(history: list, v: np.ndarray, g: np.ndarray) -> np.ndarray:
     return out if np.all(np.isfinite(out)) else g
 
 
-def _admissible(model, v: np.ndarray, v_new: np.ndarray, h: float, stats: dict) -> np.ndarray:
-    """v + a (v_new - v) for the first a = 1, 1/2, 1/4, ... with which every element of every soft
-    body keeps J / J_n within [JACOBIAN_RATIO, 1 / JACOBIAN_RATIO] (a Newton step from a
-    linearised contact solution may overshoot a large load increment; no element really changes
-    its area that much in one step). Raises StepFailure if none is found."""
+def _admissible(step, v: np.ndarray, v_new: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(v + a (v_new - v), whether a < 1) for the first a = 1, 1/2, 1/4, ... with which every
+    element of every soft body keeps J / J_n within [JACOBIAN_RATIO, 1 / JACOBIAN_RATIO] (a
+    Newton step from a linearised contact solution may overshoot a large load increment; no
+    element really changes its area that much in one step). Raises StepFailure if none is found."""
     a = 1.0
     with TIMES("backtracking check"):
         for _ in range(MAX_BACKTRACKS):
             trial = v + a * (v_new - v) if a < 1.0 else v_new
-            bad = area_violation(model, trial)
+            bad = area_violation(step, trial)
             if bad is None:
-                stats["backtracks"] += a < 1.0
-                return trial
+                return trial, a < 1.0
             a *= 0.5
     body, els, r = bad
     raise StepFailure(f"body {body}: {els.size} element(s) {els[:10].tolist()} would change their area by more "
                       f"than a factor {1.0 / JACOBIAN_RATIO:g} in one step (J/J_n down to {r:.3g}) even after "
-                      f"{MAX_BACKTRACKS} backtracking halvings of the Newton update (h = {h:.4g})")
+                      f"{MAX_BACKTRACKS} backtracking halvings of the Newton update (h = {step.h:.4g})")
 
 
-def area_violation(model, v: np.ndarray):
+def area_violation(step, v: np.ndarray):
     """None if every element of every soft body keeps J / J_n within [JACOBIAN_RATIO,
     1 / JACOBIAN_RATIO] with velocities v (n_dofs,); else (body id, elements, smallest ratio) of
     the first body that does not (SoftBodies.area_change)."""
-    lo, hi = JACOBIAN_RATIO, 1.0 / JACOBIAN_RATIO
-    return next((b for b in (g.area_change(v, lo, hi) for g in model.soft) if b is not None), None)
+    return step.area_violation(v, JACOBIAN_RATIO, 1.0 / JACOBIAN_RATIO)

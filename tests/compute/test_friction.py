@@ -24,7 +24,7 @@ def _run(tmp_path, mu, alpha):
                               [R_GROUND, r], ["ground", "rigid"])
     state = model.initial_state()
     for _ in range(int(round(T / h))):
-        rep = stepper.step(state, 0.0, 0.0)
+        state, rep = stepper.step(state, 0.0, 0.0)
     v = model.rigid.view(state.v)[1]
     return v, rep
 

@@ -3,6 +3,7 @@ whose steps fail above a given load increment, and the run's honest end (compute
 a stage ended by max_steps_per_stage, or contact solves above their tolerance, end INCOMPLETE."""
 
 import json
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,6 +13,7 @@ from compute.errors import SimulationError
 from compute.run import Run
 from compute.state import State
 from compute.stepping import load_control
+from compute.stepping.step_stats import StepStats, carrying
 from pre.packing import polydisperse_radii, random_loose_packing
 from pre.scene import default_parameters, write_scene
 
@@ -22,17 +24,14 @@ class ScriptedStepper:
 
     def __init__(self, limit: float):
         self.limit, self.asked, self.p = limit, [], 0.0
-        self.stats = {"newton_iterations": 0, "nlgs_sweeps": 0}
 
     def step(self, state, pressure):
         self.asked.append(pressure)
-        self.stats["newton_iterations"] += 3  # every attempt works, failing ones too
-        self.stats["nlgs_sweeps"] += 40
+        work = StepStats(newton_iterations=3, sweeps=40)  # every attempt works, failing ones too
         if pressure - self.p > self.limit + 1e-15:
-            raise SimulationError(f"step {state.step + 1}: body 7: Newton did not converge")
+            raise carrying(SimulationError(f"step {state.step + 1}: body 7: Newton did not converge"), work)
         self.p = pressure
-        state.step += 1
-        return SimpleNamespace(newton_iterations=3, sweeps=40)
+        return replace(state, step=state.step + 1), SimpleNamespace(newton_iterations=3, sweeps=40, work=work)
 
 
 def fresh_state():
@@ -44,11 +43,11 @@ def fresh_state():
 def ramp(stepper, state, previous, target, max_steps=100):
     applied, halvings, reports = [], 0, []
     while state.load_fraction < 1.0 and len(applied) < max_steps:
-        rep, p, k = load_control.controlled_step(stepper, state, previous, target, lambda m: None)
+        state, rep, p, k = load_control.controlled_step(stepper, state, previous, target, lambda m: None)
         applied.append(p)
         halvings += k
         reports.append(rep)
-    ramp.reports = reports
+    ramp.reports, ramp.state = reports, state
     return applied, halvings
 
 
@@ -68,7 +67,7 @@ def test_failing_jump_is_halved_then_grows_back():
     assert applied[-1] == 1.0 and np.all(np.diff(applied) > 0) and np.all(np.diff(applied) <= 0.1 + 1e-12)
     assert applied[:2] == pytest.approx([1 / 16, 2 / 16])
     assert halvings >= 4
-    assert state.load_fraction == 1.0
+    assert ramp.state.load_fraction == 1.0
     first = ramp.reports[0]  # four failed increments, then the accepted one: all their work
     assert first.newton_iterations == 3 * 5 and first.sweeps == 40 * 5
 
@@ -81,6 +80,7 @@ def test_a_diagnosis_at_the_floor():
     with pytest.raises(SimulationError) as err:
         load_control.controlled_step(stepper, state, 0.5, 1.0, lambda m: None)
     assert len(stepper.asked) == 11  # 1, 1/2, ..., 2^-10 of the jump
+    assert err.value.work == StepStats(newton_iterations=3 * 11, sweeps=40 * 11)  # all the failed steps' work
     assert stepper.asked[-1] == pytest.approx(0.5 + 0.5 * load_control.MIN_INCREMENT)
     msg = str(err.value)
     assert "stage 1 (P = 1)" in msg and "body 7" in msg and "its floor" in msg

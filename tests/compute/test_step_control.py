@@ -1,6 +1,7 @@
 """The step control (compute.stepping.control) with a scripted step attempt that fails above a
 given h: cuts, the depth kept between steps and its growing back, time and impulses."""
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from compute.errors import SimulationError, StepFailure
 from compute.state import State
 from compute.stepping import control
+from compute.stepping.step_stats import StepStats, carrying
 
 
 class ScriptedAttempt:
@@ -17,30 +19,29 @@ class ScriptedAttempt:
 
     def __init__(self, largest, penetration=lambda sub_step: 0.0):
         self.largest, self.asked, self.penetration = largest, [], penetration
-        self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
 
     def __call__(self, state, h, deepest):
         self.asked.append(h)
-        self.stats["newton_iterations"] += 2  # as the Newton loop counts: failing attempts too
-        self.stats["nlgs_sweeps"] += 9
-        state.time += h
-        state.step += 1
+        work = StepStats(newton_iterations=2, sweeps=9)  # as the Newton loop counts: failing attempts too
         if h > self.largest(self.step_index) + 1e-15:
-            raise StepFailure(f"too large a step (h = {h})")
+            raise carrying(StepFailure(f"too large a step (h = {h})"), work)
         impulse = np.full((1, 2), h)  # an impulse proportional to its sub-step
         sub_step = self.asked[::-1].index("|")  # attempts 1, 2, ... within the step
-        return SimpleNamespace(h=h, sweeps=9, residual=1e-9 * sub_step, newton_iterations=2, cuts=0,
-                               max_penetration=self.penetration(sub_step), hold_torque=1e-4 * (sub_step == 4),
-                               contacts=SimpleNamespace(impulse=impulse))
+        return replace(state, time=state.time + h, step=state.step + 1), SimpleNamespace(
+            h=h, sweeps=9, residual=1e-9 * sub_step, newton_iterations=2, cuts=0, work=work,
+            max_penetration=self.penetration(sub_step), hold_torque=1e-4 * (sub_step == 4),
+            contacts=SimpleNamespace(impulse=impulse))
 
 
 def take(attempt, state, steps, h=1.0, max_cuts=4):
+    """(the state after ``steps`` steps, their reports)."""
     reports = []
     for k in range(steps):
         attempt.step_index = state.step + 1
         attempt.asked.append("|")
-        reports.append(control.step_with_cuts(attempt, state, h, max_cuts, attempt.stats))
-    return reports
+        state, rep = control.step_with_cuts(attempt, state, h, max_cuts)
+        reports.append(rep)
+    return state, reports
 
 
 def test_cut_depth_is_kept_then_grows_back():
@@ -51,7 +52,7 @@ def test_cut_depth_is_kept_then_grows_back():
     state = State(np.zeros(1), np.zeros(1))
     G = control.GROW_AFTER
     n = 2 * G + 4
-    reports = take(attempt, state, n)
+    state, reports = take(attempt, state, n)
     steps = " ".join(str(a) for a in attempt.asked).split("|")[1:]
     assert steps[0].split() == ["1.0", "0.5", "0.25", "0.25", "0.25", "0.25"]
     assert all(s.split() == ["0.25"] * 4 for s in steps[1:G + 1])  # depth 2 kept for G steps
@@ -67,7 +68,7 @@ def test_failure_at_the_kept_depth_cuts_further():
     """A step that fails at its starting depth is cut below it, and the next starts there."""
     attempt = ScriptedAttempt(lambda step: 0.5 if step == 1 else 0.125)
     state = State(np.zeros(1), np.zeros(1))
-    take(attempt, state, 2)
+    state, _ = take(attempt, state, 2)
     steps = " ".join(str(a) for a in attempt.asked).split("|")[1:]
     assert steps[0].split() == ["1.0", "0.5", "0.5"]
     assert steps[1].split() == ["0.5", "0.25"] + ["0.125"] * 8
@@ -80,7 +81,7 @@ def test_a_cut_step_reports_the_deepest_penetration_and_largest_residual_of_its_
     the largest hold torque (that of its second quarter)."""
     attempt = ScriptedAttempt(lambda step: 0.25, penetration=lambda sub_step: {3: 2e-3}.get(sub_step, 1e-6))
     state = State(np.zeros(1), np.zeros(1))
-    rep, = take(attempt, state, 1)
+    state, (rep,) = take(attempt, state, 1)
     asked = attempt.asked[1:]
     assert asked == [1.0, 0.5, 0.25, 0.25, 0.25, 0.25]  # attempts 3..6 are the accepted quarters
     assert rep.sub_steps == 4 and rep.max_penetration == 2e-3
@@ -92,7 +93,7 @@ def test_impulses_are_rescaled_to_the_whole_step():
     """Forces = impulse / h: the last sub-step's impulse, over h / 4, is scaled to the whole h."""
     attempt = ScriptedAttempt(lambda step: 0.25)
     state = State(np.zeros(1), np.zeros(1))
-    rep, = take(attempt, state, 1)
+    state, (rep,) = take(attempt, state, 1)
     np.testing.assert_allclose(rep.contacts.impulse, 1.0)
 
 
@@ -107,25 +108,26 @@ def test_every_sub_step_is_warm_started_with_the_same_forces():
     def attempt(state, h, deepest):
         seen.append(state.impulses["f"][0, 0] / h)  # the warm start's force
         scripted.step_index = attempt.step_index
-        rep = scripted(state, h, deepest)
-        state.impulses = {"f": np.full((1, 2), h)}
-        return rep
+        new, rep = scripted(state, h, deepest)
+        return replace(new, impulses={"f": np.full((1, 2), h)}), rep
 
-    attempt.asked, attempt.stats = scripted.asked, scripted.stats
-    state = State(np.zeros(1), np.zeros(1))
-    state.impulses = {"f": np.full((1, 2), 1.0)}  # over the whole step h = 1
-    take(attempt, state, 4)
+    attempt.asked = scripted.asked
+    state = State(np.zeros(1), np.zeros(1), impulses={"f": np.full((1, 2), 1.0)})  # over the whole step h = 1
+    state, _ = take(attempt, state, 4)
     assert len(seen) == 6 + 4 + 9 + 8  # 1, 0.5 failing then 4 quarters; 4 quarters; 1 quarter failing then 8 eighths; 8
     np.testing.assert_allclose(seen, 1.0)
     np.testing.assert_allclose(state.impulses["f"], 1.0)  # over the whole step again
 
 
-def test_no_cut_helps_restores_the_state():
+def test_no_cut_helps_leaves_the_state_and_carries_the_work():
+    """The failed step's state is the one it started from, unchanged; its failure carries the
+    work of all three attempts and the two cuts."""
     attempt = ScriptedAttempt(lambda step: 0.01)
     state = State(np.zeros(1), np.zeros(1))
-    with pytest.raises(SimulationError, match="down to sub-steps h / 4 = 0.25"):
+    with pytest.raises(SimulationError, match="down to sub-steps h / 4 = 0.25") as err:
         take(attempt, state, 1, max_cuts=2)
     assert state.step == 0 and state.time == 0.0 and state.cut_depth == 0
+    assert err.value.work == StepStats(newton_iterations=2 * 3, sweeps=9 * 3, cuts=2)
 
 
 def test_only_the_deepest_attempts_are_told_so():
@@ -135,17 +137,17 @@ def test_only_the_deepest_attempts_are_told_so():
 
     class Missing(ScriptedAttempt):
         def __call__(self, state, h, deepest):
-            rep = super().__call__(state, h, deepest)
+            new, rep = super().__call__(state, h, deepest)
             if not deepest:
                 raise StepFailure("the contact solve missed its tolerance 2 times")
             rep.residual = self.residuals.pop(0)
-            return rep
+            return new, rep
 
     for residuals, largest in (([1e-3, 5e-3, 2e-3, 1e-3], 5e-3), ([1e-3, np.nan, 2e-3, 1e-3], np.nan)):
         attempt = Missing(lambda step: 1.0)
         attempt.residuals = residuals
         state = State(np.zeros(1), np.zeros(1))
-        rep, = take(attempt, state, 1, max_cuts=2)
+        state, (rep,) = take(attempt, state, 1, max_cuts=2)
         assert attempt.asked[1:] == [1.0, 0.5, 0.25, 0.25, 0.25, 0.25]
         assert rep.cuts == 2 and rep.sub_steps == 4 and state.time == pytest.approx(1.0)
         np.testing.assert_equal(rep.residual, largest)
@@ -156,18 +158,13 @@ class CostlyAttempt:
 
     def __init__(self, cost):
         self.cost, self.asked = cost, []
-        self.stats = {"cuts": 0, "newton_iterations": 0, "nlgs_sweeps": 0}
 
     def __call__(self, state, h, deepest):
         self.asked.append(h)
         its, sweeps = self.cost(h)
-        self.stats["newton_iterations"] += its
-        self.stats["nlgs_sweeps"] += sweeps
-        state.time += h
-        state.step += 1
-        return SimpleNamespace(h=h, sweeps=sweeps, residual=1e-9, newton_iterations=its, cuts=0, max_penetration=0.0,
-                               hold_torque=0.0,
-                               contacts=SimpleNamespace(impulse=np.zeros((1, 2))))
+        return replace(state, time=state.time + h, step=state.step + 1), SimpleNamespace(
+            h=h, sweeps=sweeps, residual=1e-9, newton_iterations=its, cuts=0, max_penetration=0.0, hold_torque=0.0,
+            work=StepStats(newton_iterations=its, sweeps=sweeps), contacts=SimpleNamespace(impulse=np.zeros((1, 2))))
 
 
 def _slow_above(h_slow, its, sweeps):
@@ -189,7 +186,7 @@ def test_a_slow_step_sends_the_next_ones_deeper(its, sweeps, deeper):
     slow, and it stays there. Time still advances by whole steps, and the depth is not a cut."""
     attempt = CostlyAttempt(_slow_above(0.3, its, sweeps))
     state = State(np.zeros(1), np.zeros(1))
-    reports = take(attempt, state, 4)
+    state, reports = take(attempt, state, 4)
     steps = [s.split() for s in " ".join(str(a) for a in attempt.asked).split("|")[1:]]
     if deeper:
         assert steps == [["1.0"], ["0.5", "0.5"], ["0.25"] * 4, ["0.25"] * 4]
@@ -206,7 +203,7 @@ def test_slowness_is_judged_over_the_whole_step():
     attempt = CostlyAttempt(lambda h: next(quarter))
     state = State(np.zeros(1), np.zeros(1))
     state.cut_depth = 2
-    rep, = take(attempt, state, 1)
+    state, (rep,) = take(attempt, state, 1)
     assert rep.sub_steps == 4 and state.cut_depth == 2
 
 
@@ -214,5 +211,5 @@ def test_slow_sub_steps_leave_a_level_for_cuts():
     """Depth from slowness stops one level above max_cuts: a failure there can still be cut."""
     attempt = CostlyAttempt(lambda h: (SLOW, SLOW * control.SLOW_SWEEPS + 1))
     state = State(np.zeros(1), np.zeros(1))
-    take(attempt, state, 4, max_cuts=3)
+    state, _ = take(attempt, state, 4, max_cuts=3)
     assert state.cut_depth == 2 and min(a for a in attempt.asked if a != "|") == 0.25

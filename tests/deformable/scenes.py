@@ -113,7 +113,7 @@ def settle(stepper, state, pressure: float, steps: int, tol: float = 0.0, wall_s
     """Step until the positions change by less than tol (relative to 1) over a step, or ``steps``."""
     for _ in range(steps):
         q0 = state.q.copy()
-        stepper.step(state, pressure, wall_speed)
+        state, _ = stepper.step(state, pressure, wall_speed)
         if tol and np.abs(state.q - q0).max() < tol:
             break
     return state

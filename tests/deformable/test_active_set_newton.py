@@ -10,7 +10,7 @@ tolerances; the first converges quadratically once the active set holds, the sec
 import numpy as np
 import pytest
 
-from compute.stepping import active_set
+from compute.stepping import active_set, strategies
 from pre.single_particle import write
 from tests.deformable import scenes
 
@@ -27,12 +27,14 @@ def press(folder, active: bool):
     """Final state, stepper statistics and Newton iterations of every step, pressing the disk
     with the active-set Newton or (active False) the fixed-point loop."""
     model, stepper, state = scenes.load(folder)
-    assert model.active_set_newton  # one soft body, rotation held, frictionless walls
-    model.active_set_newton = active
+    # one soft body, rotation held, frictionless walls: auto takes the active-set Newton
+    assert stepper.strategy is strategies.STRATEGIES["active_set"]
+    stepper.strategy = strategies.STRATEGIES["active_set" if active else "fixed_point"]
     iterations = []
     for p in PRESSURES:
         for _ in range(STEPS):
-            iterations.append(stepper.step(state, p).newton_iterations)
+            state, rep = stepper.step(state, p)
+            iterations.append(rep.newton_iterations)
     return state, stepper.stats, iterations
 
 

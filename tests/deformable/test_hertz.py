@@ -42,7 +42,7 @@ def squeeze(tmp_path, n, forces, max_steps=200):
     for force in forces:
         heights = []
         for _ in range(max_steps):
-            stepper.step(state, force / WIDTH)
+            state, _ = stepper.step(state, force / WIDTH)
             b = model.bounds(state.q)
             heights.append(b[3] - b[2])
             if len(heights) > 3 and max(abs(heights[-1] - heights[-2]), abs(heights[-2] - heights[-3])) < 1e-7:

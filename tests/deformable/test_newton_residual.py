@@ -17,6 +17,7 @@ independently:
 import numpy as np
 import pytest
 
+from compute.bodies import Load
 from compute.contact.problem import ContactProblem
 from compute.contact.compliance import Compliance
 from compute.contact.rows import generalised_impulse
@@ -24,6 +25,7 @@ from compute.contact.residual import natural_map_error
 from tests.deformable import scenes
 
 NEWTON_TOL, CONTACT_TOL = 1e-9, 1e-3
+PRESSURE = 0.05
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +55,8 @@ def dense_check(model, stepper, q0, v0, v, contacts) -> tuple[float, Compliance]
         dofs.append(local)
         blocks.append(inverse[np.ix_(local - g.dofs.start - k * n, local - g.dofs.start - k * n)].ravel())
         start.append(start[-1] + len(local))
-    compliance = Compliance.build(model.n_dofs, [model.walls.diagonal()],
+    walls = model.walls.begin_step(q0, v0, h, th, Load(PRESSURE, 0.0, stepper.gravity))  # the step's 1 / m̂
+    compliance = Compliance.build(model.n_dofs, [(walls.dofs, walls.inverse)],
                                   [(np.array(start), np.concatenate(dofs), np.concatenate(blocks))])
     return h * th * worst, compliance
 
@@ -62,7 +65,7 @@ def test_slow_contact_solves_end_on_true_residuals(pressed):
     model, stepper, state = pressed
     for _ in range(8):
         q0, v0 = state.q.copy(), state.v.copy()
-        rep = stepper.step(state, 0.05)
+        state, rep = stepper.step(state, PRESSURE)
         assert rep.cuts == 0 and rep.newton_iterations <= 20
         c = rep.contacts
         assert np.count_nonzero(c.impulse[:, 0] > 0.0) >= 3

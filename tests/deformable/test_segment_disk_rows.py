@@ -72,7 +72,7 @@ def test_without_segment_rows_there_is_no_such_family(tmp_path):
 def test_a_pressed_rigid_disk_rests_on_the_face_only_with_segment_rows(tmp_path, rows):
     model, stepper, state, x_f, length = _scene(tmp_path, rows, 0.005)
     assert _overlap(model, state) < 1e-12
-    scenes.settle(stepper, state, 0.01, 150, tol=1e-10)
+    state = scenes.settle(stepper, state, 0.01, 150, tol=1e-10)
     c = np.sqrt(R_RIGID**2 - (length / 2) ** 2)
     cap = R_RIGID**2 * np.arccos(c / R_RIGID) - c * np.sqrt(R_RIGID**2 - c**2)  # cut off by the face's chord
     overlap = _overlap(model, state)
