@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from post import fits
+from post import fits, rounding
 
 FIT_COLUMNS = ["law", "kappa", "mu", "parameter", "value", "stderr", "phi_min", "phi_max_fitted", "rms",
                "rms_relative"]
@@ -401,22 +401,18 @@ def write_tables(result: Compaction, target: Path, paper_phi0: dict | None = Non
             write_csv(target / "curves.csv", result.points)]
 
 
-def _fmt(x, digits=3) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "–"
-    return f"{x:.{digits}f}" if isinstance(x, float) else str(x)
-
-
 def summary_markdown(study: dict, result: Compaction, reference: Reference, times: dict | None = None,
                      statuses: dict | None = None, reasons: dict | None = None) -> str:
     """The study's numbers beside the ``reference`` ones: per (κ, μ) φ₀, Z₀ (± seed scatter), ξ,
     α, φ_max of Eq. 5 and Platzer, P₀, the errors; ξ, α, b over all runs; run times ({run name:
-    seconds}), and the runs that are not complete ({name: status}, {name: reason})."""
+    seconds}), and the runs that are not complete ({name: status}, {name: reason}). Every number
+    is rounded to its meaning (post.rounding): fitted values at their standard error."""
     law, groups, glob = result.law, result.groups, result.coordination_all
     times, statuses, reasons = times or {}, statuses or {}, reasons or {}
     lines = [f"# Mixture compaction: N = {study['n']}, {study['element']} x {study['elements']} elements, "
-             f"P/E = {', '.join(f'{p:.3g}' for p in study['pressures_over_E'])}", "",
-             f"Z column: `{result.z_column}`. b = {law.b:.4g}, phi_p,max = {law.phi_p_max:.4g} from: {law.source}.", "",
+             f"P/E = {', '.join(rounding.significant(p) for p in study['pressures_over_E'])}", "",
+             f"Z column: `{result.z_column}`. b = {rounding.significant(law.b, 4)}, "
+             f"phi_p,max = {rounding.significant(law.phi_p_max, 4)} from: {law.source}.", "",
              "φ₀, Z₀: " + ("the prepared sample's (before any load; table1.csv also has the first stage's)"
                           if result.phi0_from == "prepared" else
                           "the first equilibrated stage's" + (" (table1.csv also has the prepared sample's)" if any(
@@ -426,31 +422,35 @@ def summary_markdown(study: dict, result: Compaction, reference: Reference, time
               "Platzer err φ rms / max | Eq. 3 err K rms (φ_max(κ) / φ_p,max) | run time s |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
-    def pm(value, digits):
-        return f" ± {value:.{digits}f}" if math.isfinite(value) else ""
+    def fitted(fit, name):
+        return rounding.with_error(fit.params[name], fit.stderr.get(name)) if fit else rounding.MISSING
+
+    def phi_max(fit, key, g):
+        return rounding.with_error(fit.params["phi_max"], g.phi_max_seed_std.get(key), rounding.phi) if fit \
+            else rounding.MISSING
 
     for (kappa, mu), g in sorted(groups.items()):
         e = g.errors
         co, e5, pl = g.coordination, g.eq5, g.platzer
         t = sum(times.get(r["name"], 0.0) for r in study["runs"] if r["kappa"] == kappa and r["mu"] == mu)
         lines.append(
-            f"| {kappa:g} | {mu:g} | {len(g.seeds)} | {g.phi0:.3f}{pm(g.phi0_std, 3)} "
+            f"| {kappa:g} | {mu:g} | {len(g.seeds)} | {rounding.with_error(g.phi0, g.phi0_std, rounding.phi)} "
             f"({reference.phi0.get(mu, {}).get(kappa, '–')}) | "
-            f"{g.Z0:.2f}{pm(g.Z0_std, 2)} ({reference.Z0.get(mu, {}).get(kappa, '–')}) | "
-            f"{g.Z0_no_rattlers:.2f}{pm(g.Z0_no_rattlers_std, 2)} | "
-            + (f"{co.params['xi']:.2f}, {co.params['alpha']:.2f}" if co else "–") + " | "
-            + (f"{e5.params['phi_max']:.4f}{pm(g.phi_max_seed_std.get('eq5', np.nan), 3)}" if e5 else "–") + " | "
-            + (f"{pl.params['phi_max']:.4f}{pm(g.phi_max_seed_std.get('platzer', np.nan), 3)}" if pl else "–")
-            + " | " + (f"{pl.params['P0']:.3g}" if pl else "–")
-            + f" | {_fmt(e['eq5_phi_rms'], 4)} / {_fmt(e['eq5_phi_max_abs'], 4)} | {_fmt(e['platzer_phi_rms'], 4)} / "
-              f"{_fmt(e['platzer_phi_max_abs'], 4)} | {_fmt(e['eq3_rms_rel'], 2)} / {_fmt(e['eq3_single_rms_rel'], 2)} "
-              f"| {t:.0f} |")
+            f"{rounding.with_error(g.Z0, g.Z0_std, rounding.coordination)} ({reference.Z0.get(mu, {}).get(kappa, '–')}) | "
+            f"{rounding.with_error(g.Z0_no_rattlers, g.Z0_no_rattlers_std, rounding.coordination)} | "
+            + (f"{fitted(co, 'xi')}, {fitted(co, 'alpha')}" if co else rounding.MISSING) + " | "
+            + phi_max(e5, "eq5", g) + " | " + phi_max(pl, "platzer", g) + " | " + fitted(pl, "P0")
+            + f" | {rounding.significant(e['eq5_phi_rms'], 2)} / {rounding.significant(e['eq5_phi_max_abs'], 2)} | "
+              f"{rounding.significant(e['platzer_phi_rms'], 2)} / {rounding.significant(e['platzer_phi_max_abs'], 2)} | "
+              f"{rounding.significant(e['eq3_rms_rel'], 2)} / {rounding.significant(e['eq3_single_rms_rel'], 2)} "
+              f"| {rounding.duration(t)} |")
     lines += ["", "| over all runs | toolkit | paper |", "|---|---|---|",
-              f"| ξ | {_fmt(glob.params['xi'], 2) if glob else '–'} | {reference.xi} |",
-              f"| α | {_fmt(glob.params['alpha'], 2) if glob else '–'} | {reference.alpha} |",
-              f"| b | {law.b:.3g}{' (the paper’s value, not measured)' if law.paper_default else ''} | {reference.b} |", ""]
-    lines.append(f"Compute wall time summed over runs: {sum(times.values()):.0f} s; "
-                 f"pre: {study.get('pre_seconds', float('nan'))} s.")
+              f"| ξ | {fitted(glob, 'xi')} | {reference.xi} |",
+              f"| α | {fitted(glob, 'alpha')} | {reference.alpha} |",
+              f"| b | {rounding.significant(law.b)}{' (the paper’s value, not measured)' if law.paper_default else ''} "
+              f"| {reference.b} |", ""]
+    lines.append(f"Compute wall time summed over runs: {rounding.duration(sum(times.values()))} s; "
+                 f"pre: {rounding.duration(study.get('pre_seconds'))} s.")
     unfinished = [(name, status) for name, status in statuses.items() if status != "complete"]
     if unfinished:
         lines += ["", "Runs not COMPLETE (their numbers above are not what their scenes asked for):"]

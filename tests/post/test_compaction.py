@@ -118,8 +118,13 @@ def test_law_from_a_json_and_from_a_table(tmp_path):
 def test_summary_names_the_numbers_and_the_unfinished_runs(study, result):
     text = compaction.summary_markdown(study, result, Reference({}, {}, XI, ALPHA, B), {"k0.5_s1": 12.0},
                                        {"k0.5_s1": "complete", "k1.0_s2": "incomplete"}, {"k1.0_s2": "stage 3"})
-    assert "| 0.5 | 0.2 | 2 | 0.812 ± 0.001" in text
-    assert "| ξ | 5.10 | 5.1 |" in text and "- k1.0_s2: incomplete (stage 3)" in text
+    # φ₀ = 0.812 ± 0.0014 (two seeds 0.002 apart): the scatter to two digits (a leading 1), φ₀ at its place
+    assert "| 0.5 | 0.2 | 2 | 0.8120 ± 0.0014" in text
+    assert "| ξ | 5.1 | 5.1 |" in text and "| 12 |" in text and "- k1.0_s2: incomplete (stage 3)" in text
+    assert "runs: 12 s; pre: – s." in text  # no pre time recorded
+    text = compaction.summary_markdown({**study, "pre_seconds": 915.9000000000001}, result,
+                                       Reference({}, {}, XI, ALPHA, B), {"k0.5_s1": 12.0})
+    assert "pre: 916 s." in text
 
 
 def test_measure_runs_says_why_a_run_is_left_out(tmp_path):
