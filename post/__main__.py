@@ -1,7 +1,8 @@
-"""``python -m post OUT_DIR [--friction MU | --min-contacts K] [--threshold T]``
+"""``python -m post OUT_DIR [--friction MU | --min-contacts K] [--threshold T] [--young E]``
 
 Writes OUT_DIR/post/measures.csv (one row per frame, columns in post.table), OUT_DIR/post/
-force_chains.png (last frame) and OUT_DIR/post/phi_Z_vs_P.png. Post does not read the scene:
+force_chains.png (last frame: the force network over the rigid disks in grey and the soft ones
+coloured by their pressure over E) and OUT_DIR/post/phi_Z_vs_P.png. Post does not read the scene:
 the rattler threshold is --min-contacts (default 2, the frictional value), or derived from
 --friction (2 contacts if MU > 0, 3 if frictionless).
 """
@@ -28,6 +29,8 @@ def main(argv: list[str] | None = None) -> int:
                          help="rattlers have fewer than K contacts, walls counting (default 2)")
     parser.add_argument("--threshold", type=float, default=1e-9, metavar="T",
                         help="active contacts have fn > T x mean positive fn (default 1e-9)")
+    parser.add_argument("--young", type=float, default=1.0, metavar="E",
+                        help="Young's modulus the soft disks' pressure is divided by (default 1, the studies' unit)")
     args = parser.parse_args(argv)
     min_contacts = args.min_contacts if args.friction is None else measures.default_min_contacts(args.friction)
 
@@ -41,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     written = [write_measures(rows, target / "measures.csv"),
-               plots.force_chains_png(last, target / "force_chains.png", args.threshold),
+               plots.force_chains_png(last, target / "force_chains.png", args.threshold, args.young),
                plots.phi_Z_vs_P_png(rows, target / "phi_Z_vs_P.png")]
     print("\n".join(map(str, written)))
     return 0

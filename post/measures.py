@@ -46,6 +46,9 @@ Definitions (N_p particles, walls are not particles):
   P = (sigma_1 + sigma_2)/2 (the mean stress of Eq. 1), q = (sigma_1 - sigma_2)/2.
 - P_walls = mean over the four walls of force / length.
 - Bulk modulus K = dP/d eps_v with eps_v = -ln(phi_0/phi), i.e. K = phi dP/dphi (paper Sec. 2).
+- Pressure of a deformable body: the area-weighted mean of its cells' pressure (the frames' cell
+  field, -(sigma_xx + sigma_yy)/2, compression positive) over its current cell areas: the mean
+  in-plane stress of the body, what Fig. 1 colours it by.
 """
 
 from __future__ import annotations
@@ -82,6 +85,24 @@ def particle_areas(radius: np.ndarray, rigid: np.ndarray, points: np.ndarray,
     for cells, body in meshes:
         area += np.bincount(body, weights=cell_areas(points, cells), minlength=len(radius))
     return area
+
+
+def body_pressures(n_bodies: int, points: np.ndarray,
+                   meshes: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Pressure of each deformable body, the area-weighted mean of its cell pressures (module
+    docstring); NaN for a body without cells (a rigid disk).
+
+    points (n_points, 2); meshes a list of (cells (n_cells, 3 | 6), body (n_cells,), pressure
+    (n_cells,)). Returns (n_bodies,).
+    """
+    force = np.zeros(n_bodies)  # sum of pressure x area per body
+    area = np.zeros(n_bodies)
+    for cells, body, pressure in meshes:
+        a = triangle_areas(points, cells)
+        force += np.bincount(body, weights=pressure * a, minlength=n_bodies)
+        area += np.bincount(body, weights=a, minlength=n_bodies)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(area > 0, force / area, np.nan)
 
 
 _STRAIGHT_EDGES = {3: ((0, 1), (1, 2), (2, 0)), 6: ((0, 3), (3, 1), (1, 4), (4, 2), (2, 5), (5, 0))}

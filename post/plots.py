@@ -1,5 +1,5 @@
-"""Figures with matplotlib (Agg, no pyplot state): force chains of a frame, phi and Z against P,
-and helpers that draw the paper's Figs. 2-5 on a given Axes so that the studies compose them.
+"""Figures with matplotlib (Agg, no pyplot state): a frame as the paper's Fig. 1 (soft disks
+coloured by their pressure, the force network optional), phi and Z against P, and helpers that draw the paper's Figs. 2-5 on a given Axes so that the studies compose them.
 
 matplotlib is imported inside the functions (its import is slow), never at package import.
 """
@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from post import measures
+from post import measures, rounding
 
 if TYPE_CHECKING:
     from post.compaction import Compaction
@@ -38,9 +38,17 @@ def save_figure(figure, path: str | Path, dpi: int = 150) -> Path:
     return path
 
 
-def draw_force_chains(ax, frame: Frame, threshold: float = 1e-9, max_width: float = 3.0) -> None:
-    """Draw a frame: rigid disks grey, deformable meshes coloured by their cell pressure, the box,
-    and the active contacts as segments between centres of width proportional to fn."""
+def draw_frame(ax, frame: Frame, young: float = 1.0, forces: bool = False, threshold: float = 1e-9,
+               max_width: float = 1.0, norm=None):
+    """Draw a frame like the paper's Fig. 1: the rigid disks grey, each deformable disk filled by
+    its pressure over E (post.measures.body_pressures, the area-weighted mean of its cell
+    pressures) on the continuous viridis scale ``norm`` (default: from min(0, lowest) to the
+    frame's highest p/E) with a colorbar labelled p/E, and the box. With ``forces``, the active
+    contacts (fn > threshold x mean fn) over it as thin segments between centres, of width
+    proportional to fn, ``max_width`` points at the largest.
+
+    Returns the ScalarMappable of the disks' colours (None when the frame has no deformable body).
+    """
     from matplotlib.cm import ScalarMappable
     from matplotlib.collections import LineCollection, PatchCollection, PolyCollection
     from matplotlib.colors import Normalize
@@ -49,31 +57,37 @@ def draw_force_chains(ax, frame: Frame, threshold: float = 1e-9, max_width: floa
     bodies, contacts = frame.bodies, frame.contacts
     radii = bodies.radius[bodies.rigid_ids]
     ax.add_collection(PatchCollection([Circle(c, r) for c, r in zip(bodies.rigid_centres, radii)],
-                                      facecolor="0.75", edgecolor="0.4", linewidth=0.3))
+                                      facecolor="0.7", edgecolor="0.35", linewidth=0.3))
+    mappable = None
     if bodies.meshes:
-        pressure = np.concatenate([m.pressure for m in bodies.meshes])
-        norm = Normalize(pressure.min(), max(pressure.max(), pressure.min() + 1e-300))
-        for m in bodies.meshes:
+        p_over_E = measures.body_pressures(bodies.n_bodies, bodies.points,
+                                           [(m.cells, m.body, m.pressure) for m in bodies.meshes]) / young
+        soft = p_over_E[~bodies.rigid]
+        if norm is None:
+            norm = Normalize(min(0.0, soft.min()), max(soft.max(), min(0.0, soft.min()) + 1e-300))
+        mappable = ScalarMappable(norm, "viridis")
+        for m in bodies.meshes:  # every cell of a body in the body's colour, edges included (no mesh lines)
             outline = m.cells[:, _T6_OUTLINE] if m.element == "T6" else m.cells
-            ax.add_collection(PolyCollection(bodies.points[outline], array=m.pressure, cmap="viridis", norm=norm,
-                                             edgecolor="0.3", linewidth=0.1))
-        ax.figure.colorbar(ScalarMappable(norm, "viridis"), ax=ax, label="cell pressure")
+            ax.add_collection(PolyCollection(bodies.points[outline], array=p_over_E[m.body], cmap="viridis",
+                                             norm=norm, edgecolors="face", linewidths=0.2))
+        ax.figure.colorbar(mappable, ax=ax, label="p/E", shrink=0.8)
     active = measures.active_contacts(contacts.fn, threshold)
-    if active.any():
+    if forces and active.any():
         fn = contacts.fn[active]
         ax.add_collection(LineCollection(contacts.segments[active], linewidths=max_width * fn / fn.max(),
-                                         colors="firebrick"))
+                                         colors="k", zorder=3))
     left, right, bottom, top = frame.walls.position
     ax.plot([left, right, right, left, left], [bottom, bottom, top, top, bottom], color="k", linewidth=1.0)
     ax.set_aspect("equal")
     ax.autoscale_view()
-    ax.set_title(f"frame {frame.record.frame}, P applied = {frame.record.pressure_applied:.3g}")
+    ax.set_title(f"frame {frame.record.frame}, P/E = {rounding.significant(frame.record.pressure_applied / young)}")
+    return mappable
 
 
-def force_chains_png(frame: Frame, path: str | Path, threshold: float = 1e-9) -> Path:
-    """PNG of :func:`draw_force_chains`."""
+def force_chains_png(frame: Frame, path: str | Path, threshold: float = 1e-9, young: float = 1.0) -> Path:
+    """PNG of :func:`draw_frame` with the force network drawn."""
     figure, axes = new_figure(size=(7.0, 6.0))
-    draw_force_chains(axes[0, 0], frame, threshold)
+    draw_frame(axes[0, 0], frame, young, forces=True, threshold=threshold)
     return save_figure(figure, path)
 
 
@@ -153,7 +167,8 @@ def plot_single_particle(ax, curves: Mapping[str, tuple[np.ndarray, np.ndarray]]
     if fit is not None:
         fit_phi, fit_pressure = _fit_curve(fit)
         ax.plot(fit_pressure, fit_phi, "--", color="0.5",
-                label=rf"Eq. 2: b = {fit.params['b']:.3g}, $\phi_{{p,max}}$ = {fit.params['phi_p_max']:.3g}")
+                label=rf"Eq. 2: b = {rounding.with_error(fit.params['b'], fit.stderr.get('b'))}, "
+                      rf"$\phi_{{p,max}}$ = {rounding.with_error(fit.params['phi_p_max'], fit.stderr.get('phi_p_max'))}")
     ax.set_xlabel(r"$P_p/E$")
     ax.set_ylabel(r"$\phi_p$")
     ax.legend()
@@ -162,12 +177,13 @@ def plot_single_particle(ax, curves: Mapping[str, tuple[np.ndarray, np.ndarray]]
 # --- the paper's figures of a compaction study (post.compaction) -------------------------------
 
 
-def figure_views(frames: Sequence[Frame], title: str):
-    """Fig. 1: the frames side by side (force chains, cell pressure)."""
+def figure_views(frames: Sequence[Frame], title: str, young: float = 1.0, forces: bool = False):
+    """Fig. 1: the frames side by side, rigid disks grey, soft disks coloured by their pressure
+    p/E (a colorbar per view), the force network over them if ``forces`` (:func:`draw_frame`)."""
     fig, axes = new_figure(1, len(frames), size=(4.5, 4.2))
     for ax, frame in zip(axes[0], frames):
-        draw_force_chains(ax, frame)
-        ax.set_title(f"P/E = {frame.record.pressure_applied:.3g}")
+        draw_frame(ax, frame, young, forces)
+        ax.set_title(f"P/E = {rounding.significant(frame.record.pressure_applied / young)}")
     fig.suptitle(title)
     return fig
 
@@ -237,7 +253,8 @@ def figure_coordination(result: Compaction, reference: tuple[float, float] | Non
                           rf"$\kappa$ = {kappa:g}, $\mu$ = {mu:g}", markers.get(mu, "o"), colour[kappa])
     glob = result.coordination_all
     if glob is not None:
-        laws = [(rf"fit: $\xi$ = {glob.params['xi']:.3g}, $\alpha$ = {glob.params['alpha']:.3g}",
+        laws = [(rf"fit: $\xi$ = {rounding.with_error(glob.params['xi'], glob.stderr.get('xi'))}, "
+                 rf"$\alpha$ = {rounding.with_error(glob.params['alpha'], glob.stderr.get('alpha'))}",
                  glob.params["xi"], glob.params["alpha"], "--", "k")]
         if reference is not None:
             laws.append((rf"paper: $\xi$ = {reference[0]}, $\alpha$ = {reference[1]}", *reference, ":", "0.5"))

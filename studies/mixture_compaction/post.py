@@ -102,7 +102,8 @@ def views(w: Path, study: dict, result: compaction.Compaction):
         print(f"fig1_views.png not redrawn: frames {gone} of {run['name']} are not in {out / 'frames'}")
         return None
     return plots.figure_views([read_frame(out, r) for r in pick],
-                              f"kappa = {k1:g}, mu = {m1:g} (grey: rigid; colour: cell pressure)")
+                              f"kappa = {k1:g}, mu = {m1:g} (grey: rigid; colour: soft disk pressure p/E)",
+                              float(study.get("young", 1.0)))
 
 
 def main(argv=None) -> int:

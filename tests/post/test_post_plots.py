@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+
 import numpy as np
 import pytest
 
@@ -54,3 +56,102 @@ def test_render_when_a_backend_exists(mixed_lattice, tmp_path):
         pytest.skip("no off-screen OpenGL backend")
     png = render.render_bodies(frame_path(mixed_lattice, "bodies", 3), tmp_path / "bodies.png", scalars="pressure")
     assert png.stat().st_size > 0
+
+
+# --- Fig. 1: soft disks coloured by their pressure --------------------------------------------
+
+E, NU = 2.5, 0.495  # E != 1, so that the colours are p/E and not p
+
+
+def dilation_pressure_over_E(stretch: float) -> float:
+    """p/E of a neo-Hookean disk dilated uniformly in its plane, x = c + stretch (X - c), derived by
+    hand from the law of compute/fem/material.py (plane strain, W = mu/2 (J^-2/3 I1 - 3) + U(J),
+    U = kappa/4 (J^2 - 1 - 2 ln J), mu = E/(2(1 + nu)), kappa = E/(3(1 - 2 nu))):
+
+    F = stretch I (2x2), F3 = diag(stretch, stretch, 1), J = stretch^2, b3 = diag(J, J, 1),
+    I1 = 2J + 1; sigma = mu J^(-5/3) (b3 - I1/3 I3) + U'(J) I3 with U'(J) = kappa/2 (J - 1/J), so
+    sigma_xx = sigma_yy = mu J^(-5/3) (J - 1)/3 + kappa/2 (J - 1/J). The isochoric part does not
+    vanish: the out-of-plane stretch stays 1, so an in-plane dilation is not a 3D one (its
+    deviator (J - 1)/3 diag(1, 1, -2) has in-plane components). p = -(sigma_xx + sigma_yy)/2."""
+    J = stretch**2
+    mu, kappa = E / (2 * (1 + NU)), E / (3 * (1 - 2 * NU))
+    return -(mu * J ** (-5 / 3) * (J - 1) / 3 + kappa / 2 * (J - 1 / J)) / E
+
+
+def _dilated_disk_frame(stretches: dict[str, float]):
+    """A frame of a rigid disk (body 0) and one fan-meshed soft disk per element type (bodies 1,
+    2, ...), each dilated by its stretch, whose cell pressures are the finite-element stresses of
+    compute (FEBody.element_stresses), as compute writes them in the frames."""
+    from compute.fem.body import FEBody
+    from compute.fem.material import NeoHookean
+    from post.frames import Bodies, Frame, FrameContacts, FrameRecord, MeshBlock, Walls
+    from tests.post.synthetic import disk_fan
+
+    material = NeoHookean(E, NU, 1.0)
+    points, meshes = [np.zeros((1, 2))], []
+    for body, (element, stretch) in enumerate(stretches.items(), start=1):
+        centre = np.array([1.2 * body, 0.0])
+        X, cells = disk_fan(centre, 0.5, 12, element)
+        x = centre + stretch * (X - centre)
+        pressure = FEBody(X, cells, element, material, "standard").element_stresses(x).pressure
+        offset = sum(len(p) for p in points)
+        points.append(x)
+        meshes.append(MeshBlock(element, cells + offset, np.full(len(cells), body), pressure))
+    n = 1 + len(stretches)
+    bodies = Bodies(points=np.vstack(points), radius=np.full(n, 0.5), rigid=np.arange(n) == 0,
+                    rigid_ids=np.array([0]), rigid_centres=np.zeros((1, 2)), meshes=tuple(meshes))
+    pairs = np.arange(n - 1)
+    centres = 1.2 * np.stack([np.arange(n), np.zeros(n)], axis=1)
+    contacts = FrameContacts(body_i=pairs, body_j=pairs + 1, force=np.zeros((n - 1, 2)), fn=np.arange(1.0, n),
+                             branch=np.diff(centres, axis=0), segments=np.stack([centres[:-1], centres[1:]], axis=1))
+    walls = Walls(position=np.array([-0.6, 1.2 * n - 0.6, -0.6, 0.6]), length=np.ones(4), force=np.zeros(4))
+    return Frame(FrameRecord(0, 0.0, 0, 0, 0.01 * E, True, (-0.6, 1.2 * n - 0.6, -0.6, 0.6)), bodies, contacts, walls)
+
+
+def test_soft_disks_are_coloured_by_their_analytic_pressure_over_E():
+    """A T3 disk compressed by 3 % and a T6 disk dilated by 2 %: each is filled with one colour,
+    the viridis colour of the p/E of the neo-Hookean law under that dilation; the rigid disk is
+    grey; the force network is not drawn unless asked, and thin when it is."""
+    from matplotlib import colormaps
+    from matplotlib.collections import LineCollection, PatchCollection, PolyCollection
+
+    stretches = {"T3": 0.97, "T6": 1.02}
+    frame = _dilated_disk_frame(stretches)
+    figure, axes = plots.new_figure()
+    mappable = plots.draw_frame(axes[0, 0], frame, young=E)
+    figure.savefig(io.BytesIO(), format="png")  # drawing maps the values to the colours
+    soft = [c for c in axes[0, 0].collections if isinstance(c, PolyCollection)]
+    assert len(soft) == 2
+    expected = [dilation_pressure_over_E(s) for s in stretches.values()]
+    assert expected[0] > 0 > expected[1]  # compressed: positive pressure; dilated: negative
+    for collection, p_over_E in zip(soft, expected):
+        values = np.asarray(collection.get_array())
+        np.testing.assert_allclose(values, p_over_E, rtol=1e-9)
+        np.testing.assert_allclose(collection.get_facecolor(), colormaps["viridis"](mappable.norm(values)), atol=1e-12)
+    assert mappable.norm.vmin == pytest.approx(expected[1]) and mappable.norm.vmax == pytest.approx(expected[0])
+    assert mappable.colorbar.ax.get_ylabel() == "p/E"
+    rigid = next(c for c in axes[0, 0].collections if isinstance(c, PatchCollection))
+    np.testing.assert_allclose(rigid.get_facecolor()[0], (0.7, 0.7, 0.7, 1.0))
+    assert not any(isinstance(c, LineCollection) for c in axes[0, 0].collections)
+
+    figure, axes = plots.new_figure()
+    plots.draw_frame(axes[0, 0], frame, young=E, forces=True, max_width=0.8)
+    lines = [c for c in axes[0, 0].collections if isinstance(c, LineCollection)]
+    assert len(lines) == 1 and max(lines[0].get_linewidths()) == pytest.approx(0.8)
+
+
+def test_a_body_pressure_is_the_area_weighted_mean_of_its_cells():
+    """Cells of hand-known areas: T3 triangles of areas 1 and 3; a T6 triangle with straight edges
+    (area 2) and one whose edge 01 bulges by 0.5 (area 2 + 4/3 x 0.5, Archimedes' parabolic
+    segment); a body without cells (rigid) has none."""
+    from post.measures import body_pressures
+
+    points = np.array([[0, 0], [1, 0], [0, 2], [4, 0], [1, 2],             # T3: 0-1-2 (area 1), 1-3-4 (area 3)
+                       [0, 0], [2, 0], [0, 2], [1, -0.5], [1, 1], [0, 1],   # T6, edge 01 bulging
+                       [0, 0], [0, -2], [2, 0], [0, -1], [1, -1], [1, 0]],  # T6, straight (area 2)
+                      dtype=float)
+    t3 = (np.array([[0, 1, 2], [1, 3, 4]]), np.array([0, 0]), np.array([4.0, 0.0]))
+    t6 = (np.array([[5, 6, 7, 8, 9, 10], [11, 12, 13, 14, 15, 16]]), np.array([1, 1]), np.array([3.0, -1.0]))
+    p = body_pressures(3, points, [t3, t6])
+    np.testing.assert_allclose(p[:2], [(4 * 1 + 0 * 3) / 4, (3 * 8 / 3 - 1 * 2) / (8 / 3 + 2)])
+    assert np.isnan(p[2])
