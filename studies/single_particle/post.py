@@ -36,6 +36,7 @@ def main(argv=None) -> int:
     ap.add_argument("--compare", action="append", default=[], metavar="DIR",
                     help="another study folder to draw in the figure (repeatable)")
     a = ap.parse_args(argv)
+    from post import rounding
     from post.errors import OutputError
     from post.single_particle import curve, fit, mesh_label
     from post.table import write_measures
@@ -70,9 +71,10 @@ def main(argv=None) -> int:
     ax.set_title(f"single particle, Eq. 2 fitted on phi_p in [{result.phi_range[0]:.3f}, {result.phi_range[1]:.3f}]",
                  fontsize=8)
     save_figure(fig, target / "single_particle.png")
-    print(f"{target / 'measures.csv'}\nEq. 2: b = {info['b']:.4f} +- {result.stderr['b']:.1g}, phi_p,max = "
-          f"{info['phi_p_max']:.4f} +- {result.stderr['phi_p_max']:.1g} (fitted on {n} stages, phi_p in "
-          f"[{result.phi_range[0]:.4f}, {result.phi_range[1]:.4f}], rms {100 * result.rms_relative:.2g} %)")
+    print(f"{target / 'measures.csv'}\nEq. 2: b = {rounding.with_error(info['b'], result.stderr['b'])}, phi_p,max = "
+          f"{rounding.with_error(info['phi_p_max'], result.stderr['phi_p_max'])} (fitted on {n} stages, phi_p in "
+          f"[{rounding.phi(result.phi_range[0])}, {rounding.phi(result.phi_range[1])}], "
+          f"rms {rounding.significant(100 * result.rms_relative, 2)} %)")
     return 0
 
 
