@@ -1,5 +1,6 @@
 """Figures with matplotlib (Agg, no pyplot state): a frame as the paper's Fig. 1 (soft disks
-coloured by their pressure, the force network optional), phi and Z against P, and helpers that draw the paper's Figs. 2-5 on a given Axes so that the studies compose them.
+coloured by their pressure, the force network optional), phi and Z against P, and helpers that
+draw the paper's Figs. 2-5 on a given Axes so that the studies compose them.
 
 matplotlib is imported inside the functions (its import is slow), never at package import.
 """
