@@ -111,17 +111,32 @@ def test_single_particle_default(tmp_path):
     assert abs(fit["b"] - PAPER_B) < 0.03
 
 
+# The README's "Results of the small default": φ₀ per (κ, μ), and ξ, α fitted over all runs
+README_MIXTURE_PHI0 = {(0.2, 0.0): "0.757", (0.2, 0.2): "0.755", (0.5, 0.0): "0.762", (0.5, 0.2): "0.758",
+                       (0.8, 0.0): "0.761", (0.8, 0.2): "0.759", (1.0, 0.0): "0.760", (1.0, 0.2): "0.757"}
+README_MIXTURE_XI_ALPHA = (5.75, 0.72)
+
+
 def test_mixture_compaction_default(tmp_path):
     """README (top and study): N = 30, κ ∈ {0.2, 0.5, 0.8, 1}, μ ∈ {0, 0.2}, P/E = 1e-3 … 1 in 7
-    stages: the 8 runs COMPLETE. Per run: φ grows with P; the walls carry P within the stage
-    criterion's 1 % and the contacts' mean stress equals it within that; at jamming (the first
-    stage, soft disks compressed by 1e-3 of E) the isostatic lower bounds. Against the paper,
-    with what N = 30 allows (README, "Results of the small default" and "Three seeds"): φ₀ lies
-    0.05 below the paper's (the wall layer of a 30-disk box): within 0.04-0.07 below its range;
-    one contact moves Z by 0.067 and the fits of Z - Z₀ = ξ(φ - φ₀)^α over all runs give
-    ξ = 4.6-5.8, α = 0.58-0.72 (paper 5.1, 0.5): ξ within 1.5 of the paper's, α in [0.4, 0.85]."""
+    stages, the 8 runs COMPLETE (:func:`check_mixture`)."""
     w = tmp_path / "mixture"
     run_study("mixture_compaction", w)
+    check_mixture(w)
+
+
+def check_mixture(w: Path) -> None:
+    """Every run COMPLETE with its 7 stages. Per run: φ grows with P; the walls carry P within the
+    stage criterion's 1 %; the contacts' mean stress equals the walls' only as far as every
+    particle is at rest, which the stages do not test (they test φ, the walls' inertial number and
+    the walls' balance): within twice the walls' criterion, 2 %; at jamming (the first stage, soft
+    disks pressed by 1e-3 of E, nearly rigid) the isostatic lower bounds. Against the paper, with
+    what N = 30 allows (README, "Results of the small default" and "Three seeds"): φ₀ lies 0.05
+    below the paper's (the wall layer of a 30-disk box), within 0.04-0.07 below its range, and is
+    the README's at the precision it prints; one contact moves Z by 0.067, so the law
+    Z - Z₀ = ξ(φ - φ₀)^α fitted over all runs is a staircase fit: ξ, α within two of their
+    standard errors of the README's, ξ within 1.5 of the paper's 5.1 and α in [0.4, 0.85] (the
+    paper's 0.5 and the README's three-seed 0.58 to its default's 0.72, with that scatter)."""
     study = json.loads((w / "study.json").read_text())
     assert len(study["runs"]) == 8
     for run in study["runs"]:
@@ -129,13 +144,15 @@ def test_mixture_compaction_default(tmp_path):
         assert (out / "COMPLETE").is_file(), f"{run['name']}: {sorted(p.name for p in out.iterdir())}"
         m = equilibrated(out / "post" / "measures.csv")
         assert len(m["phi"]) == 7, run["name"]
-        check_compaction(m, 1e-2, 1e-2)
+        check_compaction(m, 2e-2, 1e-2)
         bound = 3.0 if run["mu"] > 0 else 4.0
         assert m["Z_constraints"][0] >= bound, (run["name"], m["Z_constraints"][0])
         assert PAPER_PHI0[0] - 0.07 <= m["phi"][0] <= PAPER_PHI0[1] - 0.04, (run["name"], m["phi"][0])
-    fits = {(r["law"], r["kappa"], r["parameter"]): float(r["value"])
+        assert as_printed(m["phi"][0], README_MIXTURE_PHI0[(run["kappa"], run["mu"])]), (run["name"], m["phi"][0])
+    fits = {(r["law"], r["kappa"], r["parameter"]): (float(r["value"]), float(r["stderr"]))
             for r in csv.DictReader(open(w / "post" / "fits.csv"))}
-    xi, alpha = fits[("coordination", "all", "xi")], fits[("coordination", "all", "alpha")]
+    (xi, xi_err), (alpha, alpha_err) = fits[("coordination", "all", "xi")], fits[("coordination", "all", "alpha")]
+    assert abs(xi - README_MIXTURE_XI_ALPHA[0]) <= 2 * xi_err and abs(alpha - README_MIXTURE_XI_ALPHA[1]) <= 2 * alpha_err
     assert abs(xi - PAPER_XI) < 1.5 and 0.4 <= alpha <= 0.85, (xi, alpha)
     summary = (w / "post" / "summary.md").read_text()
     assert "Runs not COMPLETE" not in summary and (w / "post" / "fig1_views.png").stat().st_size > 0
