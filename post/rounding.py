@@ -1,7 +1,8 @@
 """Numbers for people: how post rounds what a reader sees (summary.md, markdown tables, figure
 labels, messages). CSV and JSON files keep every digit; these rules are for text only.
 
-- a duration: whole seconds from 100 s up, three significant digits below (916 s, 12.3 s);
+- a duration in seconds: whole seconds from a hundred up, three significant digits below (915.9 is
+  "916", 12.34 is "12.3");
 - a value with its standard error (or its scatter): the error to one significant digit, two when
   that digit is 1 (one digit would move such an error by up to a third), and the value to the same
   decimal place: 0.11718 ± 0.00483 is "0.117 ± 0.005", 0.9878 ± 0.0012 is "0.9878 ± 0.0012";
@@ -35,7 +36,7 @@ def decimals(x, places: int) -> str:
 
 
 def duration(seconds) -> str:
-    """A duration in seconds, without the unit: whole seconds from 100 s, else 3 significant
+    """A duration in seconds, without the unit: whole seconds from a hundred up, else 3 significant
     digits (915.9000000000001 -> "916", 12.34 -> "12.3")."""
     if not _finite(seconds):
         return MISSING
