@@ -81,7 +81,7 @@ def test_phi0_of_the_prepared_sample_or_of_the_first_stage(study):
     assert row["phi0_from"] == "prepared" and row["phi0_prepared"] == PHI0 - 0.004 and row["Z0_prepared"] == Z0 - 0.5
     assert row["phi0_first_stage"] == pytest.approx(PHI0 + 0.001)
     text = compaction.summary_markdown(prepared, result, Reference({}, {}, XI, ALPHA, B))
-    assert "φ₀, Z₀: the prepared sample's" in text and "| 0.5 | 0.2 | 2 | 0.807 ± 0.000" in text
+    assert "φ₀, Z₀: the prepared sample's" in text and "| 0.5 | 0.2 | 2 | 0.8070 (–) | 3.10 (–)" in text
 
     first = compaction.analyse(prepared, tables, LAW, phi0="first-stage")
     g = first.groups[(0.5, 0.2)]
