@@ -35,6 +35,7 @@ HISTORY_COLUMNS = ["time", "step", "stage", "pressure_applied", "xmin", "xmax", 
                    "max_penetration", "newton_iterations", "cuts", "load_halvings", "sub_steps", "hold_torque"]
 ADDED_COLUMNS = 2  # trailing columns that histories of earlier versions lack (resumed: left empty, unknown)
 SERIES = ("bodies", "contacts", "walls")
+CHECKPOINT = "checkpoint/state.npz"  # the restart point, relative to the output folder
 END_MARK = "#end"  # first word of the last line of frames.csv (module docstring)
 
 

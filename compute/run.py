@@ -45,7 +45,6 @@ from compute.stepping.moreau_jean import Stepper
 from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
 
-CHECKPOINT = "checkpoint/state.npz"
 # φ above 1 with a soft boundary beyond the walls stops the run (compute.wall_crossing)
 PHI_LIMIT = 1.0 + 1e-9
 
@@ -96,7 +95,7 @@ class Run:
             with files.guarded(folder):
                 folder.mkdir(parents=True, exist_ok=True)
         output.remove_temporaries(self.out)
-        ckpt = self.out / CHECKPOINT
+        ckpt = self.out / output.CHECKPOINT
         frames_csv = self.out / "frames.csv"
         if resume and files.is_file(ckpt, OutputFolderError):
             self._check_same_scene()
@@ -121,7 +120,7 @@ class Run:
             self.log(f"no checkpoint in {self.out}: starting from the scene")
         for f in output.frame_files(self.out):
             files.remove(f)
-        for name in ("frames.csv", CHECKPOINT, "FAILED", "summary.json", *summary.MARKERS):
+        for name in ("frames.csv", output.CHECKPOINT, "FAILED", "summary.json", *summary.MARKERS):
             files.remove(self.out / name)
         files.write_atomic(self.out / "scene.toml", lambda tmp: shutil.copyfile(self.scene.path / "scene.toml", tmp))
         output.write_frame_rows(frames_csv, [])
@@ -336,7 +335,7 @@ class Run:
         self.stepper.restart_point()
         self.history.flush()
         arrays = self.state.to_arrays()
-        files.write_atomic(self.out / CHECKPOINT, lambda tmp: np.savez(tmp, **arrays))
+        files.write_atomic(self.out / output.CHECKPOINT, lambda tmp: np.savez(tmp, **arrays))
         self._last_checkpoint = time.monotonic()
 
 

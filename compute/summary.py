@@ -40,7 +40,7 @@ def run_status(out: str | Path) -> str:
         return "incomplete"
     if (out / "FAILED").is_file():
         return "failed"
-    if (out / "checkpoint" / "state.npz").is_file():
+    if (out / output.CHECKPOINT).is_file():
         return "partial"
     return "new"
 
