@@ -53,16 +53,33 @@ QUASI_STATIC = {
 
 
 def compaction_parameters(bounds: tuple[float, float, float, float], friction: float, pressures,
-                          overrides: dict | None = None) -> dict:
+                          overrides: dict | None = None, element: str = "T3") -> dict:
     """Walls, loading, solver and output tables (pre.scene.default_parameters layout) of an
     isotropic compaction by frictionless pressure-driven walls, no gravity, through the stages
     ``pressures`` (P/E, E = 1), each run to equilibrium (phi variation < 1e-4 over check_every
-    steps, inertial number < 1e-4, wall force = P L within 1 %). :data:`QUASI_STATIC` then
-    ``overrides`` ("table.key" -> value) set the numerical settings."""
+    steps, inertial number < 1e-4, wall force = P L within 1 %). :data:`QUASI_STATIC`, the
+    contact rows the soft disks' ``element`` needs at this friction (:func:`frictionless_rows`),
+    then ``overrides`` ("table.key" -> value) set the numerical settings."""
     from pre.scene import default_parameters, overridden
 
     params = default_parameters(bounds, friction, 1.0, [float(p) for p in pressures])
-    return overridden(params, {**QUASI_STATIC, **(overrides or {})})
+    return overridden(params, {**QUASI_STATIC, **frictionless_rows(friction, element), **(overrides or {})})
+
+
+def frictionless_rows(friction: float, element: str = "T3") -> dict:
+    """Contact rows of rigid disks against the boundaries of soft disks of ``element`` in a
+    compaction at ``friction``.
+
+    Node-disk rows hold a soft body's nodes off a rigid disk, not the segments between them.
+    Without friction the nodes slide around a pressed disk, the segment between them stretches
+    and the disk wedges through it: frictionless mixtures then fail at high pressure (an
+    inverted element, a Newton stall) or count φ above 1, where rows against the segments too
+    (compute.contact.soft_rows) keep them complete (benchmarks/results/frictionless_rows.md).
+    With friction the nodes do not slide off and the node rows alone carry the runs, at fewer
+    steps. T6 disks keep the node rows: their boundaries have twice the nodes, and with segment
+    rows their half-edges under pressed disks oscillate so that stages may not end. Only a scene
+    holding both rigid and soft disks makes the segment rows (compute.contact.families)."""
+    return {"solver.rigid_soft_rows": "nodes_and_segments"} if friction == 0.0 and element == "T3" else {}
 
 
 def choose_deformable(radii: np.ndarray, kappa: float, rng: np.random.Generator | None = None) -> np.ndarray:

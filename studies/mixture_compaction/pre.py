@@ -166,7 +166,7 @@ def main(argv=None) -> int:
             from compute.scene import read_scene
 
             bounds = read_scene(rigid_scene).walls.bounds
-            params = compaction_parameters(bounds, mu, pressures, overrides)
+            params = compaction_parameters(bounds, mu, pressures, overrides, element=a.element)
             for kappa in a.kappa:
                 name = run_name(kappa, mu, seed)
                 if name in kept:

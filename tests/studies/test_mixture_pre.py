@@ -72,6 +72,23 @@ def test_mixture_scene_from_rigid_scene(tmp_path):
     assert scene.loading.pressures == (1e-3, 1e-2) and scene.loading.gravity == (0.0, 0.0)
 
 
+
+def test_frictionless_compaction_keeps_disks_off_the_segments():
+    """Frictionless compactions of T3 disks hold rigid disks off the soft segments as well as the
+    nodes (the wedging of pre.mixture.frictionless_rows); frictional ones and T6 disks keep the
+    node rows alone; an explicit override wins; a scene without both kinds builds no segment
+    family."""
+    from compute.contact.families import families_of
+
+    box = (0.0, 4.0, 0.0, 4.0)
+    assert compaction_parameters(box, 0.0, [1e-3])["solver"]["rigid_soft_rows"] == "nodes_and_segments"
+    assert compaction_parameters(box, 0.2, [1e-3])["solver"]["rigid_soft_rows"] == "nodes"
+    assert compaction_parameters(box, 0.0, [1e-3], element="T6")["solver"]["rigid_soft_rows"] == "nodes"
+    forced = compaction_parameters(box, 0.0, [1e-3], {"solver.rigid_soft_rows": "nodes"})
+    assert forced["solver"]["rigid_soft_rows"] == "nodes"
+    assert "segment_disk" in {f.name for f in families_of({"rigid", "soft", "wall"}, "nodes_and_segments")}
+    assert "segment_disk" not in {f.name for f in families_of({"soft", "wall"}, "nodes_and_segments")}
+
 # ------------------------------------------------------------------ the study's pre.py: the preparation
 
 def _pre(workdir, *extra):
