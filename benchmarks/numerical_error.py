@@ -1,0 +1,173 @@
+"""The numerical error of one mixture run: the same run with a halved time step, a ten times
+tighter contact tolerance, a ten times tighter stage-end test and a four times finer soft mesh,
+against the run as the study sets it.
+
+Each variant is the run's scene with one setting changed (the mesh variant is the study's
+jammed rigid scene with the same soft disks, chosen by the same seed, meshed with
+``--mesh-factor`` times the elements). Every variant runs as its own ``python -m compute``
+process with one thread, ``--workers`` at a time; ``python -m post`` then measures φ, Z and P at
+every equilibrated stage, and the Platzer law is fitted to φ(P) as the study does. Written:
+benchmarks/results/OUTPUT.md (the table, and the largest difference of each variant from the
+base run) and OUTPUT.csv (every stage of every variant). Outputs stay in --workdir.
+
+    W=studies/mixture_compaction/results/n1500_t3
+    python benchmarks/numerical_error.py --run $W/runs/k0.2_mu0.2_s1 --rigid $W/rigid/mu0.2_s1/scene \\
+        --kappa 0.2 --seed 1 --workdir runs/numerical_error --output numerical_error_n1500_k0.2_mu0.2
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / "results"
+ONE_THREAD = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def variants(scene: Path, mesh_factor: int) -> dict[str, dict]:
+    """Name -> overrides ("table.key" -> value) of the scene's settings; "mesh" is built apart."""
+    from compute.schema import migrate
+
+    params = migrate(scene / "scene.toml", tomllib.loads((scene / "scene.toml").read_text()))
+    s, load = params["solver"], params["loading"]
+    return {"base": {},
+            "h / 2": {"solver.time_step": s["time_step"] / 2},
+            "contact tolerance / 10": {"solver.contact_tolerance": s["contact_tolerance"] / 10},
+            "stage test / 10": {"loading.phi_tolerance": load["phi_tolerance"] / 10,
+                                "loading.inertial_tolerance": load["inertial_tolerance"] / 10},
+            f"mesh × {mesh_factor}": {}}
+
+
+def mesh_scene(run_scene: Path, rigid_scene: Path, folder: Path, kappa: float, seed: int, factor: int) -> Path:
+    """The run's scene with its soft disks meshed ``factor`` times finer: the study's
+    pre.mixture.mixture_scene on the same jammed packing, with the same seed (the same soft
+    disks) and the run's own settings."""
+    from compute.scene import read_scene
+    from compute.schema import migrate
+    from pre.mixture import mixture_scene
+
+    scene = read_scene(run_scene)
+    soft = scene.deformable
+    raw = migrate(run_scene / "scene.toml", tomllib.loads((run_scene / "scene.toml").read_text()))
+    material = next(m for m in scene.materials.values() if m.kind != "rigid")
+    _, mask = mixture_scene(rigid_scene, folder, kappa, float(scene.friction.max()), np.random.default_rng(seed),
+                            element=soft[0].element, n_elements=factor * len(soft[0].cells),
+                            young=material.young, poisson=material.poisson, parameters=raw)
+    if set(np.flatnonzero(mask)) != {d.body for d in soft}:
+        raise SystemExit(f"{folder}: κ {kappa} and seed {seed} do not give the run's soft disks; give the study's")
+    return folder
+
+
+def run_all(folders: dict[str, Path], workers: int) -> None:
+    """Run every scene folder not yet run as ``python -m compute SCENE --out OUT`` (resumed from
+    its checkpoint if it has one), ``workers`` at a time; its wall seconds go to ``seconds``
+    beside it."""
+    pending, running, seconds = list(folders.items()), {}, {}
+    env = os.environ | ONE_THREAD
+    while pending or running:
+        while pending and len(running) < workers:
+            name, scene = pending.pop(0)
+            out = scene.parent / "out"
+            resume = ["--resume"] if (out / "checkpoint").is_dir() else []
+            if (out / "COMPLETE").is_file() or (out / "INCOMPLETE").is_file():
+                continue
+            log = open(scene.parent / "compute.log", "a")
+            running[name] = (subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out),
+                                               "--threads", "1", *resume], stdout=log, stderr=subprocess.STDOUT,
+                                              env=env), time.perf_counter())
+        for name, (proc, t0) in list(running.items()):
+            if proc.poll() is not None:
+                seconds[name] = time.perf_counter() - t0
+                (folders[name].parent / "seconds").write_text(f"{seconds[name]:.1f}\n")
+                print(f"{name}: exit {proc.returncode}, {seconds[name]:.0f} s", flush=True)
+                del running[name]
+        time.sleep(2)
+    return seconds
+
+
+def stages(out: Path) -> dict:
+    """φ, Z, P/E at the equilibrated frames (post's measures) and steps, Newton iterations."""
+    import json
+
+    from post.table import measure_output
+
+    rows = [r for r in measure_output(out) if r["equilibrated"]]
+    summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {}
+    return {"status": summary.get("status", "failed"), "steps": summary.get("steps", 0),
+            "newton": sum(s["newton_iterations"] for s in summary.get("stages", [])),
+            "P": np.array([r["pressure_applied"] for r in rows]), "phi": np.array([r["phi"] for r in rows]),
+            "Z": np.array([r["Z"] for r in rows])}
+
+
+def main() -> None:
+    from pre.scene import copy_scene
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", type=Path, required=True, help="a study run folder (scene/ inside)")
+    ap.add_argument("--rigid", type=Path, required=True, help="the study's jammed rigid scene of that run")
+    ap.add_argument("--kappa", type=float, required=True, help="the study's κ of that run (as asked)")
+    ap.add_argument("--seed", type=int, required=True, help="the study's seed of that run")
+    ap.add_argument("--mesh-factor", type=int, default=4)
+    ap.add_argument("--workdir", type=Path, required=True)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--output", required=True)
+    a = ap.parse_args()
+    scene = a.run / "scene"
+    folders = {}
+    for i, (name, overrides) in enumerate(variants(scene, a.mesh_factor).items()):
+        folder = a.workdir / f"v{i}" / "scene"
+        if not folder.is_dir():
+            folder.parent.mkdir(parents=True, exist_ok=True)
+            if name.startswith("mesh"):
+                mesh_scene(scene, a.rigid, folder, a.kappa, a.seed, a.mesh_factor)
+            else:
+                copy_scene(scene, folder, overrides)
+        folders[name] = folder
+    run_all(folders, a.workers)
+    seconds = {name: float((f.parent / "seconds").read_text()) for name, f in folders.items()
+               if (f.parent / "seconds").is_file()}
+    results = {name: stages(f.parent / "out") for name, f in folders.items()}
+    write(results, seconds, a)
+
+
+def write(results: dict, seconds: dict, a) -> None:
+    from post.fits import fit_platzer
+
+    base = results["base"]
+    lines = [f"# Numerical error of {a.run.name} ({a.run.parent.parent.name})", "",
+             f"`python benchmarks/numerical_error.py --run {a.run} --rigid {a.rigid} --kappa {a.kappa:g} --seed {a.seed} "
+             f"--mesh-factor {a.mesh_factor} --workdir W --output {a.output}`", "",
+             "Per variant: status, steps, Newton iterations, wall seconds (one thread, "
+             f"{a.workers} variants at a time), φ at every equilibrated stage, Platzer φ_max and P₀ fitted "
+             "from the first stage's φ, and the largest |Δφ| and |ΔZ| over the stages against the base run.", "",
+             "| variant | status | steps | Newton iterations | s | φ per stage | Platzer φ_max, P₀/E | max \\|Δφ\\| | max \\|ΔZ\\| |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    rows = []
+    for name, r in results.items():
+        fit = fit_platzer(r["phi"], r["P"], r["phi"][0]) if len(r["phi"]) >= 3 else None
+        same = len(r["phi"]) == len(base["phi"])
+        dphi = np.abs(r["phi"] - base["phi"]).max() if same else np.nan
+        dz = np.abs(r["Z"] - base["Z"]).max() if same else np.nan
+        platzer = f"{fit.params['phi_max']:.4f}, {fit.params['P0']:.3f}" if fit else "–"
+        lines.append(f"| {name} | {r['status']} | {r['steps']} | {r['newton']} | {seconds.get(name, float('nan')):.0f} | "
+                     f"{' '.join(f'{p:.4f}' for p in r['phi'])} | {platzer} | {dphi:.1e} | {dz:.2f} |")
+        rows += [{"variant": name, "P_over_E": p, "phi": f, "Z": z} for p, f, z in zip(r["P"], r["phi"], r["Z"])]
+    (RESULTS / a.output).parent.mkdir(parents=True, exist_ok=True)
+    (RESULTS / f"{a.output}.md").write_text("\n".join(lines) + "\n")
+    with open(RESULTS / f"{a.output}.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, ["variant", "P_over_E", "phi", "Z"])
+        w.writeheader()
+        w.writerows(rows)
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
