@@ -75,8 +75,9 @@ def frictionless_rows(friction: float, element: str = "T3") -> dict:
     and the disk wedges through it: frictionless mixtures then fail at high pressure (an
     inverted element, a Newton stall) or count φ above 1, where rows against the segments too
     (compute.contact.soft_rows) keep them complete (benchmarks/results/frictionless_rows.md).
-    With friction the nodes do not slide off and the node rows alone carry the runs, at fewer
-    steps. T6 disks keep the node rows: their boundaries have twice the nodes, and with segment
+    With friction the nodes slide less: the node rows alone carry most runs, at fewer steps and
+    nearer a refined mesh's φ at high pressure, though a frictional run can wedge too (the same
+    file). T6 disks keep the node rows: their boundaries have twice the nodes, and with segment
     rows their half-edges under pressed disks oscillate so that stages may not end. Only a scene
     holding both rigid and soft disks makes the segment rows (compute.contact.families)."""
     return {"solver.rigid_soft_rows": "nodes_and_segments"} if friction == 0.0 and element == "T3" else {}
