@@ -1,6 +1,7 @@
 """The numerical error of one mixture run: the same run with a halved time step, a ten times
-tighter contact tolerance, a ten times tighter stage-end test and a four times finer soft mesh,
-against the run as the study sets it.
+tighter contact tolerance, a ten times tighter stage-end test, a four times finer soft mesh and
+walls three times more damped (a slower approach to each stage's equilibrium: the terminal
+inertial number / 3), against the run as the study sets it.
 
 Each variant is the run's scene with one setting changed (the mesh variant is the study's
 jammed rigid scene with the same soft disks, chosen by the same seed, meshed with
@@ -43,7 +44,8 @@ def variants(scene: Path, mesh_factor: int) -> dict[str, dict]:
             "contact tolerance / 10": {"solver.contact_tolerance": s["contact_tolerance"] / 10},
             "stage test / 10": {"loading.phi_tolerance": load["phi_tolerance"] / 10,
                                 "loading.inertial_tolerance": load["inertial_tolerance"] / 10},
-            f"mesh × {mesh_factor}": {}}
+            f"mesh × {mesh_factor}": {},
+            "wall damping / 3": {"walls.damping_inertial_number": params["walls"]["damping_inertial_number"] / 3}}
 
 
 def mesh_scene(run_scene: Path, rigid_scene: Path, folder: Path, kappa: float, seed: int, factor: int) -> Path:
