@@ -5,9 +5,10 @@ inertial number / 3), against the run as the study sets it.
 
 Each variant is the run's scene with one setting changed (the mesh variant is the study's
 jammed rigid scene with the same soft disks, chosen by the same seed, meshed with
-``--mesh-factor`` times the elements). Every variant runs as its own ``python -m compute``
-process with one thread, ``--workers`` at a time; ``python -m post`` then measures φ, Z and P at
-every equilibrated stage, and the Platzer law is fitted to φ(P) as the study does. Written:
+``--mesh-factor`` times the elements). The variants are dispatched as a study's runs are
+(studies.dispatch: ``--workers`` at a time, one thread each at first, resumed if killed, wall
+times in WORKDIR/dispatch.jsonl); post's measures then give φ, Z and P at every equilibrated
+stage, and the Platzer law is fitted to φ(P) as the study does. Written:
 benchmarks/results/OUTPUT.md (the table, and the largest difference of each variant from the
 base run) and OUTPUT.csv (every stage of every variant). Outputs stay in --workdir.
 
@@ -20,17 +21,12 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
-import subprocess
-import sys
-import time
 import tomllib
 from pathlib import Path
 
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
-ONE_THREAD = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
 def variants(scene: Path, mesh_factor: int) -> dict[str, dict]:
@@ -68,33 +64,6 @@ def mesh_scene(run_scene: Path, rigid_scene: Path, folder: Path, kappa: float, s
     return folder
 
 
-def run_all(folders: dict[str, Path], workers: int) -> None:
-    """Run every scene folder not yet run as ``python -m compute SCENE --out OUT`` (resumed from
-    its checkpoint if it has one), ``workers`` at a time; its wall seconds go to ``seconds``
-    beside it."""
-    pending, running, seconds = list(folders.items()), {}, {}
-    env = os.environ | ONE_THREAD
-    while pending or running:
-        while pending and len(running) < workers:
-            name, scene = pending.pop(0)
-            out = scene.parent / "out"
-            resume = ["--resume"] if (out / "checkpoint").is_dir() else []
-            if (out / "COMPLETE").is_file() or (out / "INCOMPLETE").is_file():
-                continue
-            log = open(scene.parent / "compute.log", "a")
-            running[name] = (subprocess.Popen([sys.executable, "-m", "compute", str(scene), "--out", str(out),
-                                               "--threads", "1", *resume], stdout=log, stderr=subprocess.STDOUT,
-                                              env=env), time.perf_counter())
-        for name, (proc, t0) in list(running.items()):
-            if proc.poll() is not None:
-                seconds[name] = time.perf_counter() - t0
-                (folders[name].parent / "seconds").write_text(f"{seconds[name]:.1f}\n")
-                print(f"{name}: exit {proc.returncode}, {seconds[name]:.0f} s", flush=True)
-                del running[name]
-        time.sleep(2)
-    return seconds
-
-
 def stages(out: Path) -> dict:
     """φ, Z, P/E at the equilibrated frames (post's measures) and steps, Newton iterations."""
     import json
@@ -111,6 +80,7 @@ def stages(out: Path) -> dict:
 
 def main() -> None:
     from pre.scene import copy_scene
+    from studies.dispatch import RunSpec, dispatch, run_times
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, required=True, help="a study run folder (scene/ inside)")
@@ -133,9 +103,10 @@ def main() -> None:
             else:
                 copy_scene(scene, folder, overrides)
         folders[name] = folder
-    run_all(folders, a.workers)
-    seconds = {name: float((f.parent / "seconds").read_text()) for name, f in folders.items()
-               if (f.parent / "seconds").is_file()}
+    log_file = a.workdir / "dispatch.jsonl"
+    dispatch([RunSpec(name, f, f.parent / "out") for name, f in folders.items()], n_workers=a.workers,
+             log_file=log_file, progress=False)
+    seconds = run_times(log_file)
     results = {name: stages(f.parent / "out") for name, f in folders.items()}
     write(results, seconds, a)
 
@@ -147,7 +118,7 @@ def write(results: dict, seconds: dict, a) -> None:
     lines = [f"# Numerical error of {a.run.name} ({a.run.parent.parent.name})", "",
              f"`python benchmarks/numerical_error.py --run {a.run} --rigid {a.rigid} --kappa {a.kappa:g} --seed {a.seed} "
              f"--mesh-factor {a.mesh_factor} --workdir W --output {a.output}`", "",
-             "Per variant: status, steps, Newton iterations, wall seconds (one thread, "
+             "Per variant: status, steps, Newton iterations, wall seconds (one thread at first, "
              f"{a.workers} variants at a time), φ at every equilibrated stage, Platzer φ_max and P₀ fitted "
              "from the first stage's φ, and the largest |Δφ| and |ΔZ| over the stages against the base run.", "",
              "| variant | status | steps | Newton iterations | s | φ per stage | Platzer φ_max, P₀/E | max \\|Δφ\\| | max \\|ΔZ\\| |",
