@@ -93,6 +93,9 @@ def main() -> None:
     ap.add_argument("--output", required=True)
     a = ap.parse_args()
     scene = a.run / "scene"
+    for folder, option in ((scene, "--run RUN: RUN/scene"), (a.rigid, "--rigid")):
+        if not (folder / "scene.toml").is_file():
+            ap.error(f"{folder}: no scene.toml; {option} must be a scene folder written by pre")
     folders = {}
     for i, (name, overrides) in enumerate(variants(scene, a.mesh_factor).items()):
         folder = a.workdir / f"v{i}" / "scene"
