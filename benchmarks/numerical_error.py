@@ -1,7 +1,9 @@
 """The numerical error of one mixture run: the same run with a halved time step, a ten times
 tighter contact tolerance, a ten times tighter stage-end test, a four times finer soft mesh and
 walls three times more damped (a slower approach to each stage's equilibrium: the terminal
-inertial number / 3), against the run as the study sets it.
+inertial number / 3), against the run as the study sets it; and what coarser settings would
+save and cost (a doubled time step, ten times looser Newton and contact tolerances, a three
+times looser stage-end test).
 
 Each variant is the run's scene with one setting changed (the mesh variant is the study's
 jammed rigid scene with the same soft disks, chosen by the same seed, meshed with
@@ -10,7 +12,8 @@ jammed rigid scene with the same soft disks, chosen by the same seed, meshed wit
 times in WORKDIR/dispatch.jsonl); post's measures then give φ, Z and P at every equilibrated
 stage, and the Platzer law is fitted to φ(P) as the study does. Written:
 benchmarks/results/OUTPUT.md (the table, and the largest difference of each variant from the
-base run) and OUTPUT.csv (every stage of every variant). Outputs stay in --workdir.
+base run) and OUTPUT.csv (every stage of every variant). Outputs stay in --workdir, one folder
+per variant whatever ``--variants`` picks, so that runs are shared between outputs.
 
     W=studies/mixture_compaction/results/n1500_t3
     python benchmarks/numerical_error.py --run $W/runs/k0.2_mu0.2_s1 --rigid $W/rigid/mu0.2_s1/scene \\
@@ -41,7 +44,12 @@ def variants(scene: Path, mesh_factor: int) -> dict[str, dict]:
             "stage test / 10": {"loading.phi_tolerance": load["phi_tolerance"] / 10,
                                 "loading.inertial_tolerance": load["inertial_tolerance"] / 10},
             f"mesh × {mesh_factor}": {},
-            "wall damping / 3": {"walls.damping_inertial_number": params["walls"]["damping_inertial_number"] / 3}}
+            "wall damping / 3": {"walls.damping_inertial_number": params["walls"]["damping_inertial_number"] / 3},
+            "h × 2": {"solver.time_step": s["time_step"] * 2},
+            "Newton tolerance × 10": {"solver.newton_tolerance": s["newton_tolerance"] * 10},
+            "contact tolerance × 10": {"solver.contact_tolerance": s["contact_tolerance"] * 10},
+            "stage test × 3": {"loading.phi_tolerance": load["phi_tolerance"] * 3,
+                               "loading.inertial_tolerance": load["inertial_tolerance"] * 3}}
 
 
 def mesh_scene(run_scene: Path, rigid_scene: Path, folder: Path, kappa: float, seed: int, factor: int) -> Path:
@@ -65,7 +73,8 @@ def mesh_scene(run_scene: Path, rigid_scene: Path, folder: Path, kappa: float, s
 
 
 def stages(out: Path) -> dict:
-    """φ, Z, P/E at the equilibrated frames (post's measures) and steps, Newton iterations."""
+    """φ, Z, P/E at the equilibrated frames (post's measures) and steps, Newton iterations,
+    contact sweeps (the history's, all sub-steps of a step counted)."""
     import json
 
     from post.table import measure_output
@@ -74,8 +83,17 @@ def stages(out: Path) -> dict:
     summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {}
     return {"status": summary.get("status", "failed"), "steps": summary.get("steps", 0),
             "newton": sum(s["newton_iterations"] for s in summary.get("stages", [])),
+            "sweeps": int(np.loadtxt(out / "history.csv", delimiter=",", skiprows=1, ndmin=2,
+                                     usecols=_column(out / "history.csv", "nlgs_sweeps")).sum())
+            if (out / "history.csv").is_file() else 0,
             "P": np.array([r["pressure_applied"] for r in rows]), "phi": np.array([r["phi"] for r in rows]),
             "Z": np.array([r["Z"] for r in rows])}
+
+
+def _column(path: Path, name: str) -> int:
+    """Index of column ``name`` in the CSV file ``path``'s header."""
+    with open(path) as fh:
+        return next(csv.reader(fh)).index(name)
 
 
 def main() -> None:
@@ -91,14 +109,23 @@ def main() -> None:
     ap.add_argument("--workdir", type=Path, required=True)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--output", required=True)
+    ap.add_argument("--variants", nargs="+", metavar="NAME",
+                    help="run and report only these variants (and the base run): names as in the table, "
+                         "e.g. 'h × 2' (default: all)")
     a = ap.parse_args()
     scene = a.run / "scene"
     for folder, option in ((scene, "--run RUN: RUN/scene"), (a.rigid, "--rigid")):
         if not (folder / "scene.toml").is_file():
             ap.error(f"{folder}: no scene.toml; {option} must be a scene folder written by pre")
+    every = variants(scene, a.mesh_factor)
+    unknown = set(a.variants or ()) - set(every)
+    if unknown:
+        ap.error(f"--variants: no variant {', '.join(sorted(unknown))}; the variants are {', '.join(every)}")
     folders = {}
-    for i, (name, overrides) in enumerate(variants(scene, a.mesh_factor).items()):
-        folder = a.workdir / f"v{i}" / "scene"
+    for i, (name, overrides) in enumerate(every.items()):
+        if a.variants and name != "base" and name not in a.variants:
+            continue
+        folder = a.workdir / f"v{i}" / "scene"  # the index in the full list: a folder keeps its variant
         if not folder.is_dir():
             folder.parent.mkdir(parents=True, exist_ok=True)
             if name.startswith("mesh"):
@@ -120,12 +147,14 @@ def write(results: dict, seconds: dict, a) -> None:
     base = results["base"]
     lines = [f"# Numerical error of {a.run.name} ({a.run.parent.parent.name})", "",
              f"`python benchmarks/numerical_error.py --run {a.run} --rigid {a.rigid} --kappa {a.kappa:g} --seed {a.seed} "
-             f"--mesh-factor {a.mesh_factor} --workdir W --output {a.output}`", "",
-             "Per variant: status, steps, Newton iterations, wall seconds (one thread at first, "
+             f"--mesh-factor {a.mesh_factor} --workdir W --output {a.output}"
+             + "".join(f" --variants '{v}'" if i == 0 else f" '{v}'" for i, v in enumerate(a.variants or ())) + "`", "",
+             "Per variant: status, steps, Newton iterations, contact sweeps, wall seconds (one thread at first, "
              f"{a.workers} variants at a time), φ at every equilibrated stage, Platzer φ_max and P₀ fitted "
              "from the first stage's φ, and the largest |Δφ| and |ΔZ| over the stages against the base run.", "",
-             "| variant | status | steps | Newton iterations | s | φ per stage | Platzer φ_max, P₀/E | max \\|Δφ\\| | max \\|ΔZ\\| |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| variant | status | steps | Newton iterations | contact sweeps | s | φ per stage | Platzer φ_max, P₀/E "
+             "| max \\|Δφ\\| | max \\|ΔZ\\| |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     rows = []
     for name, r in results.items():
         fit = fit_platzer(r["phi"], r["P"], r["phi"][0]) if len(r["phi"]) >= 3 else None
@@ -133,7 +162,7 @@ def write(results: dict, seconds: dict, a) -> None:
         dphi = np.abs(r["phi"] - base["phi"]).max() if same else np.nan
         dz = np.abs(r["Z"] - base["Z"]).max() if same else np.nan
         platzer = f"{fit.params['phi_max']:.4f}, {fit.params['P0']:.3f}" if fit else "–"
-        lines.append(f"| {name} | {r['status']} | {r['steps']} | {r['newton']} | {seconds.get(name, float('nan')):.0f} | "
+        lines.append(f"| {name} | {r['status']} | {r['steps']} | {r['newton']} | {r['sweeps']} | {seconds.get(name, float('nan')):.0f} | "
                      f"{' '.join(f'{p:.4f}' for p in r['phi'])} | {platzer} | {dphi:.1e} | {dz:.2f} |")
         rows += [{"variant": name, "P_over_E": p, "phi": f, "Z": z} for p, f, z in zip(r["P"], r["phi"], r["Z"])]
     (RESULTS / a.output).parent.mkdir(parents=True, exist_ok=True)
