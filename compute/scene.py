@@ -81,7 +81,7 @@ class Solver:
     skin: float
     newton_tolerance: float
     newton_max_iterations: int
-    contact: str  # contact solver: "auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip" (compute.solvers.for_scene)
+    contact: str  # contact solver: "auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip", "cone_point", "mprgp" (compute.solvers.for_scene)
     rigid_soft_rows: str  # "nodes" or "nodes_and_segments" (compute.contact.soft_rows, segment-disk)
     hold_rotation: bool  # soft bodies' angular momentum about their centroid held at zero (compute.bodies.soft)
     step: str  # step strategy: "auto", "fixed_point", "active_set" (compute.stepping.strategies)
@@ -198,9 +198,13 @@ def parse_parameters(file, data: dict) -> dict:
         raise SceneError(file, "loading.pressures", "a non-empty list of positive numbers", ld["pressures"])
     loading = Loading(**{**ld, "pressures": tuple(ld["pressures"]), "gravity": tuple(ld["gravity"])})
     _check_pressure_over_young(file, materials, loading.pressures)
-    return dict(materials=materials, material_names=list(names), friction=_read_interactions(file, data, names),
-                walls=walls, loading=loading, solver=Solver(**schema.validate(file, "solver.", data.get("solver"),
-                                                                             schema.SOLVER)),
+    friction = _read_interactions(file, data, names)
+    solver = Solver(**schema.validate(file, "solver.", data.get("solver"), schema.SOLVER))
+    if solver.contact == "mprgp" and friction.max() > 0.0:
+        raise SceneError(file, "solver.contact", "a contact solver for friction ('mprgp' solves frictionless "
+                         "contact only: every [[interactions]] law frictionless or of friction 0)", solver.contact)
+    return dict(materials=materials, material_names=list(names), friction=friction,
+                walls=walls, loading=loading, solver=solver,
                 output=Output(**schema.validate(file, "output.", data.get("output"), schema.OUTPUT)), bodies=bodies)
 
 

@@ -166,10 +166,13 @@ SOLVER = (
     _tolerance("newton_tolerance", "Newton loop: position correction, in mean diameters", low=1e-15, default=1e-8),
     Key("newton_max_iterations", "int", "Newton iterations per step attempt", low=1, high=1000, default=20),
     Key("contact", "str", "contact solver (auto: without soft bodies nlgs_ip up to 500 movable disks, nlgs above; "
-        "block for one soft body alone, else nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py; nlgs_ip: NLGS, "
+        "block for one soft body alone, mprgp for soft bodies among more than 100 movable bodies and no friction, else "
+        "nlgs_block; interior_point: all contacts together, compute/solvers/interior_point.py; nlgs_ip: NLGS, "
         "the interior point where NLGS stalls, compute/solvers/nlgs_then.py; cone_point: De Saxcé shift fixed point "
-        "over monotone cone LCPs, for jammed frictional rigid packings, compute/solvers/cone_point.py)",
-        options=("auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip", "cone_point"), default="auto"),
+        "over monotone cone LCPs, for jammed frictional rigid packings, compute/solvers/cone_point.py; mprgp: frictionless "
+        "contact as a bound-constrained quadratic program, projected conjugate gradients, compute/solvers/mprgp.py)",
+        options=("auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip", "cone_point", "mprgp"),
+        default="auto"),
     Key("rigid_soft_rows", "str", "rigid disks against soft boundaries: kept off the soft nodes, or off the nodes "
         "and the boundary segments between them (tried with T3; with T6 the half-edges under pressed disks "
         "oscillate and stages may not end: benchmarks/experiments/README.md)", options=("nodes", "nodes_and_segments"),

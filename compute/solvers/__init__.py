@@ -22,10 +22,15 @@ solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:f
   a fixed point, each step a monotone LCP over the Coulomb cones solved by the same interior
   point: converges where ``interior_point`` stalls, on jammed frictional rigid packings;
   ``nlgs_max_sweeps`` bounds its interior-point iterations too;
+- ``"mprgp"``: :class:`~compute.solvers.mprgp.MPRGP`, frictionless contact only (a scene with
+  friction is refused): the problem as a bound-constrained quadratic program, solved by
+  projected conjugate gradients on the whole packing, warm-started; ``nlgs_max_sweeps`` bounds
+  its iterations;
 - ``"auto"`` (default): without soft bodies, ``nlgs_ip`` up to ``AUTO_FALLBACK_BODIES`` movable
   rigid bodies and ``nlgs`` above (a block would be one contact: the same iteration, dearer);
   ``block`` for a scene whose only moving bodies are one soft body and the walls; ``nlgs_block``
-  for soft bodies among other bodies. Why: near jamming, frictional rigid packings pose contact
+  for soft bodies among other bodies, or ``mprgp`` where none of them has friction and they are
+  more than ``AUTO_QP_BODIES``. Why: near jamming, frictional rigid packings pose contact
   problems on which NLGS needs tens of thousands of sweeps, so its solves end above tolerance at
   their sweep limit; with the interior-point fallback the rigid_jamming study's default runs end
   COMPLETE in less time, but the fallback's sparse factorisations grow faster than a sweep:
@@ -37,7 +42,15 @@ solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:f
   network, where blocks take as many sweeps as points at a higher cost per sweep; but while a
   mixture compacts, ``nlgs`` can stall where ``block`` converges (:mod:`compute.solvers.nlgs_then`),
   hence ``nlgs_block``; ``nlgs_ip`` there is slower at the default tolerance (a cold interior
-  point per fallback, at any Newton iteration) and pays off only at tight ones. Figures: benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md.
+  point per fallback, at any Newton iteration) and pays off only at tight ones. Without
+  friction the contact problem is a convex quadratic program, and ``mprgp``, conjugate gradients
+  over the whole packing, needs far fewer iterations than NLGS needs sweeps, at about the cost
+  of a sweep each: frictionless mixtures run markedly faster. ``nlgs_block`` is kept for the
+  smallest ones (up to ``AUTO_QP_BODIES``), where the gain is least, so that they run as they
+  did: the 30-disk default's κ = 0.5 frictionless run equilibrates its second stage only by
+  chance, and does not with ``mprgp``, nor with NLGS at a tighter tolerance. Figures:
+  benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md,
+  benchmarks/results/frictionless_qp.md.
 
 All stop on the error of :mod:`compute.contact.residual` that the scene's
 ``solver.contact_error`` names (their ``measure``), with its optional penetration bound, and
@@ -51,21 +64,23 @@ import numpy as np
 
 MAX_INTERIOR_POINT_ITERATIONS = 200  # an interior point that needs more has stalled
 AUTO_FALLBACK_BODIES = 500  # auto: rigid scenes up to this many movable bodies get nlgs_ip (module docstring)
+AUTO_QP_BODIES = 100  # auto: frictionless soft mixtures above this many movable bodies get mprgp (module docstring)
 
 
 def for_model(settings, model):
     """The contact solver of ``settings`` (a scene's ``[solver]``) for a :class:`compute.model.Model`."""
     return for_scene(settings, sum(len(g) for g in model.soft), int(np.count_nonzero(~model.rigid.fixed)),
-                     model.diameter)
+                     model.diameter, frictionless=not np.any(model.friction > 0.0))
 
 
-def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
+def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0, frictionless: bool = False):
     """The contact solver of a scene's ``[solver]`` settings (module docstring), for a scene
     with ``n_soft`` soft bodies, ``n_rigid`` movable rigid disks and mean diameter ``diameter``
-    (the unit of ``penetration_bound``)."""
+    (the unit of ``penetration_bound``), ``frictionless`` if no pair of materials has friction."""
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.cone_point import ConePoint
     from compute.solvers.interior_point import InteriorPoint
+    from compute.solvers.mprgp import MPRGP
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
     from compute.contact.residual import Measure
@@ -76,10 +91,14 @@ def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0):
     if kind == "auto":
         if n_soft == 0:
             kind = "nlgs_ip" if n_rigid <= AUTO_FALLBACK_BODIES else "nlgs"
+        elif n_rigid == 0 and n_soft == 1:
+            kind = "block"
         else:
-            kind = "block" if n_rigid == 0 and n_soft == 1 else "nlgs_block"
+            kind = "mprgp" if frictionless and n_soft + n_rigid > AUTO_QP_BODIES else "nlgs_block"
     if kind == "interior_point":
         return InteriorPoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
+    if kind == "mprgp":
+        return MPRGP(tol, sweeps, measure)
     if kind == "cone_point":
         return ConePoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
     if kind == "block":

@@ -56,6 +56,15 @@ def test_unknown_contact_solver(scene):
     _expect(scene, "scene.toml", "solver.contact", "one of 'auto', 'nlgs', 'block'")
 
 
+def test_the_frictionless_solver_is_refused_for_friction(scene):
+    """'mprgp' solves frictionless contact only: a scene with friction (this one, 0.2) is refused
+    when read, not at its first contact solve."""
+    _edit_toml(scene, r'^contact = "auto"$', 'contact = "mprgp"')
+    _expect(scene, "scene.toml", "solver.contact", "frictionless contact only")
+    _edit_toml(scene, r"^friction = 0.2$", "friction = 0.0")
+    read_scene(scene)
+
+
 def test_unknown_material_kind(scene):
     _edit_toml(scene, r'^kind = "rigid"$', 'kind = "plasticine"')
     _expect(scene, "scene.toml", "materials.rigid.kind", "one of 'rigid', 'neo_hookean'")

@@ -8,6 +8,7 @@ import pytest
 from compute.solvers.block_gs import BlockGS
 from compute.solvers.cone_point import ConePoint
 from compute.solvers.interior_point import InteriorPoint
+from compute.solvers.mprgp import MPRGP
 from compute.solvers.nlgs import NLGS
 from compute.solvers.nlgs_then import NLGSThen
 from compute.contact.residual import Measure, natural_map_error
@@ -240,8 +241,8 @@ def test_block_fallback_solves_problems_where_point_gauss_seidel_stalls(kind, se
 
 def test_auto_choice():
     """nlgs_ip (cone fixed point as its rigid fallback) for a small rigid packing, nlgs for a
-    large one, block for one soft body alone in its walls, nlgs_block for soft bodies among others
-    (compute.solvers docstring)."""
+    large one, block for one soft body alone in its walls, nlgs_block for soft bodies among others,
+    mprgp for more than AUTO_QP_BODIES of them without friction (compute.solvers docstring)."""
     from types import SimpleNamespace
 
     from compute.solvers import for_scene
@@ -254,6 +255,13 @@ def test_auto_choice():
     assert isinstance(for_scene(settings, 0, 100).fallbacks[1], ConePoint)
     assert isinstance(for_scene(settings, 0, 1500), NLGS)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)
+    assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "mprgp"}), 72, 72), MPRGP)
+    assert isinstance(for_scene(settings, 300, 1200, frictionless=True), MPRGP)  # a large frictionless mixture
+    assert isinstance(for_scene(settings, 300, 1200).fallbacks[0], BlockGS)  # with friction
+    assert isinstance(for_scene(settings, 72, 72, frictionless=True), MPRGP)
+    assert isinstance(for_scene(settings, 10, 20, frictionless=True).fallbacks[0], BlockGS)  # a small one
+    assert isinstance(for_scene(settings, 1, 0, frictionless=True), BlockGS)  # one soft body alone
+    assert isinstance(for_scene(settings, 0, 1500, frictionless=True), NLGS)  # rigid: as with friction
 
 
 def test_block_solver_with_redundant_contacts():
@@ -425,3 +433,80 @@ def test_nlgs_then_keeps_the_better_iterate():
     assert kept.residual == pytest.approx(alone.residual) and np.array_equal(p.impulse, q.impulse)
     resumed = NLGSThen(first, (InteriorPoint(1e-10, 1),), resume=True).solve(chain_problem())
     assert resumed.residual <= 1e-10
+
+
+def frictionless_problem(seed: int, kind: str):
+    """A random problem of 8 contacts (tests/solvers/problems.py) with every μ set to 0."""
+    p = random_problem(np.random.default_rng(seed), kind, 8)
+    p.mu[:] = 0.0
+    return p
+
+
+@pytest.mark.parametrize("kind", KINDS + ("rank_deficient",))
+def test_mprgp_matches_lemke_without_friction(kind):
+    """MPRGP on 30 random frictionless problems (W singular for rank_deficient): each converges,
+    reports the error it reached, has no tangential impulse, and gives the oracle's contact
+    velocities (its impulses are unique only where W is regular)."""
+    for seed in range(30):
+        p = frictionless_problem(300 + seed, kind)
+        _, _, W, b = dense_form(p)
+        expected = solve_contact(W, b, p.mu)
+        report = MPRGP(1e-13, 2000).solve(p)
+        assert report.residual <= 1e-13
+        assert report.residual == pytest.approx(error_of(p, p.impulse), rel=1e-6, abs=1e-12)
+        assert not p.impulse[:, 1].any()
+        u, u_ref = W @ p.impulse.ravel() + b, W @ expected.ravel() + b
+        np.testing.assert_allclose(u, u_ref, rtol=0, atol=1e-8 * max(np.abs(u_ref).max(), 1.0))
+
+
+@pytest.mark.parametrize("measure", ("velocity", "velocity_max"))
+def test_mprgp_stops_on_the_velocity_measures(measure):
+    """A loose tolerance in a velocity measure: the error recomputed by hand from the dense form
+    is within it and is the one reported."""
+    which = {"velocity": 0, "velocity_max": 1}[measure]
+    for seed in range(10):
+        p = frictionless_problem(700 + seed, "mixed")
+        report = MPRGP(1e-3, 2000, Measure(measure)).solve(p)
+        by_hand = velocity_errors_by_hand(p, p.impulse)[which]
+        assert report.residual <= 1e-3 and by_hand <= 1.01e-3
+        assert report.residual == pytest.approx(by_hand, rel=1e-6, abs=1e-11)
+
+
+def test_mprgp_holds_the_penetration_bound():
+    """A loose tolerance with a penetration bound δ: no predicted overlap above δ (from the dense
+    form), where the same loose solve without the bound leaves more (on at least 3 of 5)."""
+    held = 0
+    for seed in range(5):
+        base = frictionless_problem(900 + seed, "mixed")
+        base.h_theta = 0.5
+        base.gap_term[:] = -np.abs(base.gap_term) - 1.0  # every contact closing
+        loose = copy_problem(base)
+        MPRGP(1e-1, 2000).solve(loose)
+        overlap = velocity_errors_by_hand(loose, loose.impulse)[2]
+        p = copy_problem(base)
+        if overlap == 0.0:
+            continue
+        report = MPRGP(1e-1, 2000, Measure("impulse", 1e-3 * overlap)).solve(p)
+        assert report.residual <= 1e-1
+        assert velocity_errors_by_hand(p, p.impulse)[2] <= 1e-3 * overlap * (1 + 1e-9)
+        held += 1
+    assert held >= 3
+
+
+def test_mprgp_carries_a_load_down_a_chain_in_few_iterations():
+    """The chain of 60 masses against a wall: point Gauss–Seidel carries the load one contact per
+    sweep (thousands of sweeps), conjugate gradients along the whole chain at once; MPRGP
+    reaches the tolerance, recomputed from the dense form, in under a twentieth of NLGS's sweeps."""
+    nlgs = NLGS(1e-10, 1_000_000).solve(chain_problem())
+    p = chain_problem()
+    report = MPRGP(1e-10, 100_000).solve(p)
+    assert report.residual <= 1e-10 and error_of(p, p.impulse) <= 1e-10
+    assert report.iterations < nlgs.iterations / 20
+
+
+def test_mprgp_refuses_friction():
+    """A problem with a frictional contact is an error, not a frictionless answer to it."""
+    p = random_problem(np.random.default_rng(5), "mixed", 8)
+    assert p.mu.max() > 0
+    with pytest.raises(ValueError, match="frictionless"):
+        MPRGP(1e-8, 100).solve(p)

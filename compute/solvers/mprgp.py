@@ -1,0 +1,239 @@
+r"""Frictionless contact as a bound-constrained quadratic program, solved by MPRGP.
+
+Without friction the contact problem of a step is the linear complementarity problem
+
+    ũ_n = W_nn r_n + q_n ≥ 0,   r_n ≥ 0,   ũ_n · r_n = 0,
+
+W_nn = H_nᵀ M̂⁻¹ H_n symmetric positive semidefinite (singular where contacts are redundant), so
+r_n minimises ½ r_nᵀ W_nn r_n + q_nᵀ r_n over r_n ≥ 0: a convex quadratic program whose gradient
+is ũ_n. Point Gauss–Seidel is coordinate descent on it and needs a number of sweeps that grows
+with the packing's size and stiffness; conjugate gradients with projections carry a load across
+the whole packing at each iteration (figures: benchmarks/results/frictionless_qp.md).
+
+Method: MPRGP, modified proportioning with reduced gradient projections (Dostál & Schöberl
+2005, Comput. Optim. Appl. 30: 23–43), on the problem scaled by s_c = 1 / sqrt(W_nn,c) (unit
+diagonal, the bounds unchanged). With g = W r + q, the free set F = {r_c > 0}, the free
+gradient φ (g on F, 0 elsewhere), the chopped gradient β (min(g, 0) off F, 0 on F) and the
+reduced free gradient φ̃ = min(r / ᾱ, φ) on F:
+
+- proportional iterate (|β|² ≤ Γ² φ̃ᵀφ): a conjugate-gradient step on the free set, or, when it
+  would leave r ≥ 0, the feasible part of it followed by a projected gradient step of fixed
+  length ᾱ = 1.9 / ‖W‖ (an expansion: the free set may grow by many contacts at once);
+- otherwise a proportioning step along β (contacts released from r = 0).
+
+Each iteration costs one product with W, made without assembling W: W x = H_nᵀ M̂⁻¹ H_n x through
+the compliance blocks (:mod:`compute.contact.compliance`), what an NLGS sweep also costs. (An
+assembled W, :mod:`compute.contact.delassus`, costs more to build for each new problem than the
+iterations it would save: a problem lasts about two solves in a mixture's Newton loop.) ‖W‖ is
+estimated by a few power iterations; an expansion that would not lower the quadratic, ᾱ being
+too long for the estimate, is redone with ᾱ halved. The method is warm-started from the
+problem's impulses (the last Newton iteration's). Stopping: the
+error of :mod:`compute.contact.residual` in the scene's measure at most ``tolerance``, on the
+iterate (the recurrence's g, recomputed exactly before the stop is accepted), or
+``max_iterations``; the velocity measures are judged there on the normal part of W r alone,
+which can only stop later than the full measure (reported at the end) would. Only for problems
+without friction: a contact with μ > 0 is an error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from compute.contact.compliance import add_compliance
+from compute.contact.residual import Measure, local_contact_error
+from compute.solvers.interior_point import local_free_velocity
+from compute.solvers.nlgs import apply_impulses
+from compute.solvers.report import SolveReport
+
+GAMMA = 1.0  # proportioning parameter Γ (Dostál's usual choice)
+EXPANSION = 1.9  # ᾱ ‖W‖: the projected gradient step of an expansion, in (0, 2)
+POWER_ITERATIONS = 6  # of the estimate of ‖W‖ (scaled), which is then raised by NORM_MARGIN
+NORM_MARGIN = 1.2
+
+
+@dataclass(frozen=True)
+class MPRGP:
+    """Frictionless contact by MPRGP (module docstring): stops when the error in ``measure`` is
+    at most ``tolerance`` or after ``max_iterations``."""
+
+    tolerance: float
+    max_iterations: int
+    measure: Measure = Measure()
+
+    def solve(self, problem) -> SolveReport:
+        """Solve ``problem`` (a ContactProblem without friction) from its warm-start impulses, in place."""
+        if np.any(problem.mu > 0.0):
+            raise ValueError("MPRGP solves frictionless contact problems only: a contact has μ > 0")
+        iterations = 0
+        carr = problem.compliance.arrays()
+        if len(problem):
+            q = local_free_velocity(problem)
+            r = np.zeros((len(problem), 2))
+            r[:, 0] = problem.impulse[:, 0]
+            iterations = mprgp(problem.dof, problem.hn, *carr, np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
+                               *self.measure.codes(problem, self.tolerance), self.max_iterations)
+            problem.impulse[:] = r
+        v = problem.free_velocity()
+        apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
+        v = problem.velocities(v)
+        return SolveReport(v, iterations, self.measure.error(problem, self.tolerance, v))
+
+
+@numba.njit(cache=True)
+def _times(dof, hn, diagonal, block, start, offset, values, s, x, hx, vx, out):
+    """out = S W_nn S x (nc,) for x (nc,), W_nn = H_nᵀ M̂⁻¹ H_n through the compliance (packed
+    rows ``dof``, ``hn``; the compliance arrays), S = diag(s); ``hx``, ``vx`` (n packed dofs,)
+    work arrays."""
+    hx[:] = 0.0
+    vx[:] = 0.0
+    for c in range(dof.shape[0]):
+        xc = s[c] * x[c]
+        if xc != 0.0:
+            for k in range(dof.shape[1]):
+                d = dof[c, k]
+                if d >= 0:
+                    hx[d] += hn[c, k] * xc
+    for d in range(hx.size):
+        if hx[d] != 0.0:
+            add_compliance(vx, d, hx[d], diagonal, block, start, offset, values)
+    for c in range(dof.shape[0]):
+        u = 0.0
+        for k in range(dof.shape[1]):
+            d = dof[c, k]
+            if d >= 0:
+                u += hn[c, k] * vx[d]
+        out[c] = s[c] * u
+
+
+@numba.njit(cache=True)
+def _error(kind, tol, bound, wnn, s, y, g, q, u, w, r, mu, size):
+    """The measure's error of the scaled iterate y with scaled gradient g (the impulses r_n = s y,
+    ũ_n = g / s); ``u``, ``w``, ``r``, ``size`` (nc, 2), (nc, 2), (nc, 2), (nc,) are work arrays."""
+    for c in range(y.size):
+        un = g[c] / s[c]
+        r[c, 0] = s[c] * y[c]
+        u[c, 0] = un
+        w[c, 0] = un - q[c, 0]
+        size[c] = abs(q[c, 0]) + abs(un) + abs(q[c, 1])
+    return local_contact_error(kind, tol, bound, wnn, u, w, r, mu, size)
+
+
+@numba.njit(cache=True)
+def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol, bound, max_iterations):
+    """Minimise ½ r_nᵀ W_nn r_n + q_nᵀ r_n over r_n ≥ 0 (module docstring), in place.
+
+    ``dof``, ``hn`` (nc, m) the packed normal rows of H and the compliance arrays
+    (:meth:`compute.contact.compliance.Compliance.arrays`); ``wnn`` (nc,) the diagonal of W_nn;
+    ``q`` (nc, 2) the local free velocities (ũ_n, u_t at r = 0); ``r`` (nc, 2) the warm start in
+    (r_n used, projected on r_n ≥ 0), the solution out (r_t = 0); (kind, tol, bound) the error
+    measure. Returns the iterations (products with W, the norm estimate's left out)."""
+    nc = q.shape[0]
+    n = diagonal.size
+    hx = np.empty(n)
+    vx = np.empty(n)
+    s = np.empty(nc)
+    for c in range(nc):
+        s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
+    ap = np.empty(nc)
+    p = np.ones(nc)  # power iterations for ‖S W S‖ (unit diagonal: at least 1)
+    norm = 1.0
+    for _ in range(POWER_ITERATIONS):
+        _times(dof, hn, diagonal, block, start, offset, values, s, p, hx, vx, ap)
+        size = np.sqrt(np.dot(ap, ap))
+        if size == 0.0:
+            break
+        norm = max(norm, size / np.sqrt(np.dot(p, p)))
+        p = ap / size
+    alpha_bar = EXPANSION / (NORM_MARGIN * norm)
+    b = np.empty(nc)  # the scaled q_n
+    y = np.empty(nc)
+    for c in range(nc):
+        b[c] = s[c] * q[c, 0]
+        y[c] = max(r[c, 0], 0.0) / s[c]
+    g = np.empty(nc)
+    p = np.zeros(nc)
+    u = np.zeros((nc, 2))
+    w = np.zeros((nc, 2))
+    rr = np.zeros((nc, 2))
+    size = np.empty(nc)
+    mu = np.zeros(nc)
+    y_half = np.empty(nc)
+    g_half = np.empty(nc)
+    _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)
+    g += b
+    for c in range(nc):
+        p[c] = g[c] if y[c] > 0.0 else 0.0
+    iterations = 0
+    while True:
+        if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol:
+            _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)  # judge the exact g
+            g += b
+            if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or iterations >= max_iterations:
+                break
+        if iterations >= max_iterations:
+            break
+        iterations += 1
+        beta2 = 0.0
+        phi_tilde_phi = 0.0
+        for c in range(nc):
+            if y[c] > 0.0:
+                phi_tilde_phi += min(y[c] / alpha_bar, g[c]) * g[c]
+            elif g[c] < 0.0:
+                beta2 += g[c] * g[c]
+        if beta2 <= GAMMA * GAMMA * phi_tilde_phi:
+            _times(dof, hn, diagonal, block, start, offset, values, s, p, hx, vx, ap)
+            pap = np.dot(p, ap)
+            alpha_cg = np.dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
+            alpha_f = np.inf
+            for c in range(nc):
+                if p[c] > 0.0:
+                    alpha_f = min(alpha_f, y[c] / p[c])
+            if alpha_f == np.inf and alpha_cg == np.inf:  # unbounded: no solution (overlaps no velocity removes)
+                break
+            if alpha_cg <= alpha_f:  # conjugate gradient step
+                for c in range(nc):
+                    y[c] = max(y[c] - alpha_cg * p[c], 0.0)  # >= 0 but for rounding at alpha_cg = alpha_f
+                g -= alpha_cg * ap
+                num = 0.0
+                for c in range(nc):
+                    if y[c] > 0.0:
+                        num += g[c] * ap[c]
+                gamma = num / pap
+                for c in range(nc):
+                    p[c] = (g[c] if y[c] > 0.0 else 0.0) - gamma * p[c]
+            else:  # expansion: to the boundary, then a projected free-gradient step
+                for c in range(nc):
+                    y_half[c] = max(y[c] - alpha_f * p[c], 0.0)
+                g_half[:] = g - alpha_f * ap
+                f_half = 0.5 * np.dot(y_half, g_half + b)  # ½ yᵀ A y + bᵀ y
+                while True:
+                    for c in range(nc):
+                        y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
+                    _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)
+                    g += b
+                    if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
+                        break
+                    alpha_bar *= 0.5  # the norm estimate was low: ᾱ too long to descend
+                for c in range(nc):
+                    p[c] = g[c] if y[c] > 0.0 else 0.0
+        else:  # proportioning: release contacts along the chopped gradient
+            d = np.zeros(nc)
+            for c in range(nc):
+                if y[c] <= 0.0 and g[c] < 0.0:
+                    d[c] = g[c]
+            _times(dof, hn, diagonal, block, start, offset, values, s, d, hx, vx, ap)
+            dad = np.dot(d, ap)
+            if dad <= 0.0:
+                break
+            alpha = np.dot(g, d) / dad
+            y -= alpha * d
+            g -= alpha * ap
+            for c in range(nc):
+                p[c] = g[c] if y[c] > 0.0 else 0.0
+    for c in range(nc):
+        r[c, 0] = s[c] * y[c]
+        r[c, 1] = 0.0
+    return iterations
