@@ -97,10 +97,11 @@ def solver_of(name: str, tol: float, soft: bool, sweeps: int = 200_000):
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.cone_point import ConePoint
     from compute.solvers.interior_point import InteriorPoint
+    from compute.solvers.mprgp import MPRGP
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
 
-    return {"nlgs": lambda: NLGS(tol, sweeps), "block": lambda: BlockGS(tol, sweeps // 4),
+    return {"mprgp": lambda: MPRGP(tol, sweeps), "nlgs": lambda: NLGS(tol, sweeps), "block": lambda: BlockGS(tol, sweeps // 4),
             "nlgs_block": lambda: NLGSThen.block(tol, sweeps), "interior_point": lambda: InteriorPoint(tol),
             "nlgs_ip": lambda: NLGSThen.interior_point(tol, sweeps, soft=soft), "cone_point": lambda: ConePoint(tol)}[name]()
 
