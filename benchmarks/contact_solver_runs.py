@@ -8,7 +8,8 @@ measured together share the machine alike. Per run: the wall time of the compute
 compute.timing's phase times (the contact solve's share), steps, Newton iterations, contact
 iterations (NLGS or block sweeps, MPRGP or interior-point iterations, as history.csv counts
 them) and φ at the last step of every stage. Written: benchmarks/results/OUTPUT.md and OUTPUT.csv;
-the runs stay in --workdir (a finished run is not run again).
+the runs stay in --workdir (a finished run is not run again). The runs are not sent through
+studies.dispatch, whose run processes do not report compute.timing's phases.
 
     python benchmarks/contact_solver_runs.py --scene W/runs/k0.2_mu0_s1/scene --contact nlgs_block mprgp \\
         --workdir /tmp/solver_runs --output frictionless_qp_n1500
@@ -47,7 +48,9 @@ def run_one(scene: Path, out: Path) -> dict:
 
 def counts(out: Path) -> dict:
     """Steps, Newton iterations, contact iterations and φ at each stage's last step (history.csv)."""
-    h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    from stage_steps import read_history  # benchmarks/ (this script's folder, first on sys.path)
+
+    h = read_history(out)
     stages = h["stage"].astype(int)
     ends = [int(np.flatnonzero(stages == s)[-1]) for s in np.unique(stages)]
     status = json.loads((out / "summary.json").read_text())["status"] if (out / "summary.json").is_file() else "failed"

@@ -78,22 +78,15 @@ def stages(out: Path) -> dict:
     import json
 
     from post.table import measure_output
+    from stage_steps import read_history  # benchmarks/ (this script's folder, first on sys.path)
 
     rows = [r for r in measure_output(out) if r["equilibrated"]]
     summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {}
     return {"status": summary.get("status", "failed"), "steps": summary.get("steps", 0),
             "newton": sum(s["newton_iterations"] for s in summary.get("stages", [])),
-            "sweeps": int(np.loadtxt(out / "history.csv", delimiter=",", skiprows=1, ndmin=2,
-                                     usecols=_column(out / "history.csv", "nlgs_sweeps")).sum())
-            if (out / "history.csv").is_file() else 0,
+            "sweeps": int(read_history(out)["nlgs_sweeps"].sum()) if (out / "history.csv").is_file() else 0,
             "P": np.array([r["pressure_applied"] for r in rows]), "phi": np.array([r["phi"] for r in rows]),
             "Z": np.array([r["Z"] for r in rows])}
-
-
-def _column(path: Path, name: str) -> int:
-    """Index of column ``name`` in the CSV file ``path``'s header."""
-    with open(path) as fh:
-        return next(csv.reader(fh)).index(name)
 
 
 def main() -> None:

@@ -162,6 +162,7 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
     mu = np.zeros(nc)
     y_half = np.empty(nc)
     g_half = np.empty(nc)
+    d = np.empty(nc)
     _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)
     g += b
     for c in range(nc):
@@ -220,10 +221,8 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
                 for c in range(nc):
                     p[c] = g[c] if y[c] > 0.0 else 0.0
         else:  # proportioning: release contacts along the chopped gradient
-            d = np.zeros(nc)
             for c in range(nc):
-                if y[c] <= 0.0 and g[c] < 0.0:
-                    d[c] = g[c]
+                d[c] = g[c] if y[c] <= 0.0 and g[c] < 0.0 else 0.0
             _times(dof, hn, diagonal, block, start, offset, values, s, d, hx, vx, ap)
             dad = np.dot(d, ap)
             if dad <= 0.0:
