@@ -44,8 +44,8 @@ solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:f
   hence ``nlgs_block``; ``nlgs_ip`` there is slower at the default tolerance (a cold interior
   point per fallback, at any Newton iteration) and pays off only at tight ones. Without
   friction the contact problem is a convex quadratic program, and ``mprgp``, conjugate gradients
-  over the whole packing, needs far fewer iterations than NLGS needs sweeps, at about the cost
-  of a sweep each: frictionless mixtures run markedly faster. ``nlgs_block`` is kept for the
+  over the whole packing, needs far fewer iterations than NLGS needs sweeps, each a little dearer
+  than a sweep: frictionless mixtures run markedly faster. ``nlgs_block`` is kept for the
   smallest ones (up to ``AUTO_QP_BODIES``), where the gain is least, so that they run as they
   did: the 30-disk default's κ = 0.5 frictionless run equilibrates its second stage only by
   chance, and does not with ``mprgp``, nor with NLGS at a tighter tolerance. Figures:

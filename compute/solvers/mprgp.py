@@ -22,7 +22,7 @@ reduced free gradient φ̃ = min(r / ᾱ, φ) on F:
 - otherwise a proportioning step along β (contacts released from r = 0).
 
 Each iteration costs one product with W, made without assembling W: W x = H_nᵀ M̂⁻¹ H_n x through
-the compliance blocks (:mod:`compute.contact.compliance`), what an NLGS sweep also costs. (An
+the compliance blocks (:mod:`compute.contact.compliance`), the work of an NLGS sweep. (An
 assembled W, :mod:`compute.contact.delassus`, costs more to build for each new problem than the
 iterations it would save: a problem lasts about two solves in a mixture's Newton loop.) ‖W‖ is
 estimated by a few power iterations; an expansion that would not lower the quadratic, ᾱ being
