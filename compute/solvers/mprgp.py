@@ -21,9 +21,14 @@ reduced free gradient φ̃ = min(r / ᾱ, φ) on F:
   length ᾱ = 1.9 / ‖W‖ (an expansion: the free set may grow by many contacts at once);
 - otherwise a proportioning step along β (contacts released from r = 0).
 
-Each iteration costs one product with W, made without assembling W: W x = H_nᵀ M̂⁻¹ H_n x through
-the compliance blocks (:mod:`compute.contact.compliance`), the work of an NLGS sweep. (An
-assembled W, :mod:`compute.contact.delassus`, costs more to build for each new problem than the
+Each iteration costs one product with W_nn, whose two parts are applied as each is cheapest
+(:func:`_times`): the rigid and wall dofs' part H_nᵀ D H_n through the 1x1 compliance blocks D
+(no matrix: a scatter and a gather over the rows), and each soft body's part as the dense
+k × k matrix W_G = H_G,nᵀ C_G H_G,n of its k contacts
+(:func:`compute.contact.delassus.normal_groups`), built once per solve for about the cost of
+two products through its s × s compliance block C_G, after which a product costs k² instead of
+a column of C_G per touched dof. (The whole W assembled in block-CSR,
+:class:`compute.contact.delassus.Delassus`, costs more to build for each new problem than the
 iterations it would save: a problem lasts about two solves in a mixture's Newton loop.) ‖W‖ is
 estimated by a few power iterations; an expansion that would not lower the quadratic, ᾱ being
 too long for the estimate, is redone with ᾱ halved. The method is warm-started from the
@@ -42,7 +47,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from compute.contact.compliance import add_compliance
+from compute.contact.delassus import normal_groups
 from compute.contact.residual import Measure, local_contact_error
 from compute.solvers.interior_point import local_free_velocity
 from compute.solvers.nlgs import apply_impulses
@@ -73,7 +78,10 @@ class MPRGP:
             q = local_free_velocity(problem)
             r = np.zeros((len(problem), 2))
             r[:, 0] = problem.impulse[:, 0]
-            iterations = mprgp(problem.dof, problem.hn, *carr, np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
+            c = problem.compliance
+            groups = normal_groups(problem.dof, problem.hn, c.block, c.start, c.offset, c.values)
+            iterations = mprgp(problem.dof, problem.hn, c.diagonal, c.block, *groups,
+                               np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
                                *self.measure.codes(problem, self.tolerance), self.max_iterations)
             problem.impulse[:] = r
         v = problem.free_velocity()
@@ -83,29 +91,43 @@ class MPRGP:
 
 
 @numba.njit(cache=True)
-def _times(dof, hn, diagonal, block, start, offset, values, s, x, hx, vx, out):
-    """out = S W_nn S x (nc,) for x (nc,), W_nn = H_nᵀ M̂⁻¹ H_n through the compliance (packed
-    rows ``dof``, ``hn``; the compliance arrays), S = diag(s); ``hx``, ``vx`` (n packed dofs,)
-    work arrays."""
-    hx[:] = 0.0
-    vx[:] = 0.0
-    for c in range(dof.shape[0]):
-        xc = s[c] * x[c]
-        if xc != 0.0:
-            for k in range(dof.shape[1]):
-                d = dof[c, k]
-                if d >= 0:
-                    hx[d] += hn[c, k] * xc
-    for d in range(hx.size):
-        if hx[d] != 0.0:
-            add_compliance(vx, d, hx[d], diagonal, block, start, offset, values)
-    for c in range(dof.shape[0]):
+def _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, x, xs, hx, out):
+    """out = S W_nn S x (nc,) for x (nc,), S = diag(s): the rigid and wall dofs' part
+    H_nᵀ D H_n through the 1x1 compliance blocks D (packed rows ``dof``, ``hn``), the soft
+    bodies' part from their dense blocks W_G (``ptr``, ``contacts``, ``woff``, ``wval`` of
+    :func:`compute.contact.delassus.normal_groups`); ``xs`` (nc,), ``hx`` (n packed dofs,, zero
+    on entry and on return) work arrays."""
+    nc, m = dof.shape
+    for c in range(nc):
+        xs[c] = s[c] * x[c]
+    for c in range(nc):
+        if xs[c] != 0.0:
+            for a in range(m):
+                d = dof[c, a]
+                if d >= 0 and block[d] < 0:
+                    hx[d] += hn[c, a] * xs[c]
+    for c in range(nc):
         u = 0.0
-        for k in range(dof.shape[1]):
-            d = dof[c, k]
+        for a in range(m):
+            d = dof[c, a]
+            if d >= 0 and block[d] < 0:
+                u += hn[c, a] * diagonal[d] * hx[d]
+        out[c] = u
+    for c in range(nc):
+        for a in range(m):
+            d = dof[c, a]
             if d >= 0:
-                u += hn[c, k] * vx[d]
-        out[c] = s[c] * u
+                hx[d] = 0.0
+    for g in range(ptr.size - 1):
+        k = ptr[g + 1] - ptr[g]
+        for i in range(k):
+            row = woff[g] + i * k
+            acc = 0.0
+            for j in range(k):
+                acc += wval[row + j] * xs[contacts[ptr[g] + j]]
+            out[contacts[ptr[g] + i]] += acc
+    for c in range(nc):
+        out[c] *= s[c]
 
 
 @numba.njit(cache=True)
@@ -122,18 +144,20 @@ def _error(kind, tol, bound, wnn, s, y, g, q, u, w, r, mu, size):
 
 
 @numba.njit(cache=True)
-def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol, bound, max_iterations):
+def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, tol, bound, max_iterations):
     """Minimise ½ r_nᵀ W_nn r_n + q_nᵀ r_n over r_n ≥ 0 (module docstring), in place.
 
-    ``dof``, ``hn`` (nc, m) the packed normal rows of H and the compliance arrays
-    (:meth:`compute.contact.compliance.Compliance.arrays`); ``wnn`` (nc,) the diagonal of W_nn;
+    ``dof``, ``hn`` (nc, m) the packed normal rows of H; ``diagonal``, ``block`` of the compliance
+    (:class:`compute.contact.compliance.Compliance`); ``ptr``, ``contacts``, ``woff``, ``wval``
+    the soft bodies' blocks of W_nn (:func:`compute.contact.delassus.normal_groups`); ``wnn``
+    (nc,) the diagonal of W_nn;
     ``q`` (nc, 2) the local free velocities (ũ_n, u_t at r = 0); ``r`` (nc, 2) the warm start in
     (r_n used, projected on r_n ≥ 0), the solution out (r_t = 0); (kind, tol, bound) the error
     measure. Returns the iterations (products with W, the norm estimate's left out)."""
     nc = q.shape[0]
     n = diagonal.size
-    hx = np.empty(n)
-    vx = np.empty(n)
+    hx = np.zeros(n)
+    xs = np.empty(nc)
     s = np.empty(nc)
     for c in range(nc):
         s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
@@ -141,7 +165,7 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
     p = np.ones(nc)  # power iterations for ‖S W S‖ (unit diagonal: at least 1)
     norm = 1.0
     for _ in range(POWER_ITERATIONS):
-        _times(dof, hn, diagonal, block, start, offset, values, s, p, hx, vx, ap)
+        _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, p, xs, hx, ap)
         size = np.sqrt(np.dot(ap, ap))
         if size == 0.0:
             break
@@ -163,14 +187,14 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
     y_half = np.empty(nc)
     g_half = np.empty(nc)
     d = np.empty(nc)
-    _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)
+    _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, y, xs, hx, g)
     g += b
     for c in range(nc):
         p[c] = g[c] if y[c] > 0.0 else 0.0
     iterations = 0
     while True:
         if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol:
-            _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)  # judge the exact g
+            _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, y, xs, hx, g)  # judge the exact g
             g += b
             if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or iterations >= max_iterations:
                 break
@@ -185,7 +209,7 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
             elif g[c] < 0.0:
                 beta2 += g[c] * g[c]
         if beta2 <= GAMMA * GAMMA * phi_tilde_phi:
-            _times(dof, hn, diagonal, block, start, offset, values, s, p, hx, vx, ap)
+            _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, p, xs, hx, ap)
             pap = np.dot(p, ap)
             alpha_cg = np.dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
             alpha_f = np.inf
@@ -213,7 +237,7 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
                 while True:
                     for c in range(nc):
                         y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
-                    _times(dof, hn, diagonal, block, start, offset, values, s, y, hx, vx, g)
+                    _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, y, xs, hx, g)
                     g += b
                     if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
                         break
@@ -223,7 +247,7 @@ def mprgp(dof, hn, diagonal, block, start, offset, values, wnn, q, r, kind, tol,
         else:  # proportioning: release contacts along the chopped gradient
             for c in range(nc):
                 d[c] = g[c] if y[c] <= 0.0 and g[c] < 0.0 else 0.0
-            _times(dof, hn, diagonal, block, start, offset, values, s, d, hx, vx, ap)
+            _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, d, xs, hx, ap)
             dad = np.dot(d, ap)
             if dad <= 0.0:
                 break

@@ -56,3 +56,30 @@ def dense_form(p: ContactProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     b = H.T @ p.free_velocity()
     b[0::2] += p.gap_term
     return C, H, H.T @ C @ H, b
+
+
+def bodies_problem(rng, nc: int, sizes=(6, 9, 4, 12), n_rigid: int = 9) -> ContactProblem:
+    """A frictionless problem over several soft bodies (dense SPD compliance blocks of ``sizes``
+    dofs, one left without contact) and ``n_rigid`` 1x1 dofs: each row touches up to 4 dofs drawn
+    from all of them, so rows couple bodies with each other and with rigid dofs."""
+    n_soft = sum(sizes)
+    n = n_soft + n_rigid
+    blocks, start = [], [0]
+    for s in sizes:
+        a = rng.normal(size=(s, s))
+        blocks.append(np.linalg.inv(a @ a.T + s * np.eye(s)).ravel())
+        start.append(start[-1] + s)
+    comp = Compliance.build(n, [(n_soft + np.arange(n_rigid), rng.uniform(0.5, 2.0, n_rigid))],
+                            [(np.array(start), np.arange(n_soft), np.concatenate(blocks))])
+    touchable = np.concatenate([np.arange(start[-2]), n_soft + np.arange(n_rigid)])  # the last body: no contact
+    dof = np.full((nc, MAX_DOFS), -1, np.int64)
+    hn, ht = np.zeros((nc, MAX_DOFS)), np.zeros((nc, MAX_DOFS))
+    for c in range(nc):
+        k = int(rng.integers(1, 5))
+        dof[c, :k] = rng.choice(touchable, k, replace=False)
+        hn[c, :k] = rng.normal(size=k)
+        ht[c, :k] = rng.normal(size=k)
+    v0 = rng.normal(size=n)
+    gap_term = -np.einsum("ck,ck->c", hn, np.where(dof >= 0, v0[dof], 0.0)) + rng.uniform(0.0, 1.0, nc)
+    return ContactProblem.of_rows(dof, hn, ht, comp, v0 + rng.normal(size=n), gap_term, np.zeros(nc),
+                                  np.zeros((nc, 2)))

@@ -13,7 +13,7 @@ from compute.solvers.nlgs import NLGS
 from compute.solvers.nlgs_then import NLGSThen
 from compute.contact.residual import Measure, natural_map_error
 from tests.solvers.lemke import frictional_lcp, lemke, solve_contact
-from tests.solvers.problems import dense_form, random_problem
+from tests.solvers.problems import bodies_problem, dense_form, random_problem
 
 def solver_of(name, tol, measure=None):
     """A fresh solver of kind ``name`` stopping at ``tol`` in ``measure`` (default: impulse)."""
@@ -510,3 +510,32 @@ def test_mprgp_refuses_friction():
     assert p.mu.max() > 0
     with pytest.raises(ValueError, match="frictionless"):
         MPRGP(1e-8, 100).solve(p)
+
+
+def test_mprgp_product_is_the_dense_normal_delassus():
+    """MPRGP applies W_nn as the rigid dofs' part through the 1x1 compliance blocks plus one dense
+    block per soft body (compute.contact.delassus.normal_groups), on problems where rows couple
+    several bodies and rigid dofs: the product S W_nn S x equals the dense H_nᵀ C H_n of the
+    test's own H and C; and MPRGP on them gives the oracle's contact velocities."""
+    from compute.contact.delassus import normal_groups
+    from compute.solvers.mprgp import _times
+
+    for seed in range(5):
+        p = bodies_problem(np.random.default_rng(400 + seed), 24)
+        _, _, W, b = dense_form(p)
+        Wnn = W[0::2, 0::2]
+        c = p.compliance
+        groups = normal_groups(p.dof, p.hn, c.block, c.start, c.offset, c.values)
+        assert groups[0][-1] - groups[0][-2] == 0  # the body without contact has an empty block
+        rng = np.random.default_rng(seed)
+        s, x = rng.uniform(0.5, 2.0, len(p)), rng.normal(size=len(p))
+        hx, out = np.zeros(len(c)), np.empty(len(p))
+        for _ in range(2):  # twice: the work array comes back zeroed
+            _times(p.dof, p.hn, c.diagonal, c.block, *groups, s, x, np.empty(len(p)), hx, out)
+            np.testing.assert_allclose(out, s * (Wnn @ (s * x)), rtol=0, atol=1e-13 * np.abs(Wnn).max())
+        assert not hx.any()
+        expected = solve_contact(W, b, p.mu)
+        report = MPRGP(1e-12, 5000).solve(p)
+        assert report.residual <= 1e-12
+        u, u_ref = W @ p.impulse.ravel() + b, W @ expected.ravel() + b
+        np.testing.assert_allclose(u, u_ref, rtol=0, atol=1e-8 * max(np.abs(u_ref).max(), 1.0))
