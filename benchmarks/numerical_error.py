@@ -82,9 +82,10 @@ def stages(out: Path) -> dict:
 
     rows = [r for r in measure_output(out) if r["equilibrated"]]
     summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {}
-    return {"status": summary.get("status", "failed"), "steps": summary.get("steps", 0),
-            "newton": sum(s["newton_iterations"] for s in summary.get("stages", [])),
-            "sweeps": int(read_history(out)["nlgs_sweeps"].sum()) if (out / "history.csv").is_file() else 0,
+    history = read_history(out) if (out / "history.csv").is_file() else None  # a failed run's steps too
+    return {"status": summary.get("status", "failed"), "steps": 0 if history is None else int(history.size),
+            "newton": 0 if history is None else int(history["newton_iterations"].sum()),
+            "sweeps": 0 if history is None else int(history["nlgs_sweeps"].sum()),
             "P": np.array([r["pressure_applied"] for r in rows]), "phi": np.array([r["phi"] for r in rows]),
             "Z": np.array([r["Z"] for r in rows])}
 
