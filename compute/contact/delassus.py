@@ -185,15 +185,19 @@ def block_matvec(indptr, indices, data, r):
 
 @numba.njit(cache=True)
 def normal_groups(dof, hn, block, start, offset, values):
-    r"""The normal Delassus operator's part from the dense compliance blocks (the soft bodies):
-    for each dense block G and the k_G contacts whose normal rows touch it, the dense
-    W_G = H_G,nᵀ C_G H_G,n (k_G, k_G), so that W_nn = Σ_G W_G + H_nᵀ D H_n with D the 1x1 blocks.
+    r"""The normal Delassus operator's part from the dense compliance blocks (the soft bodies), as
+    the cheaper of two forms per block G with s_G dofs and the k_G contacts whose normal rows touch
+    it: the dense W_G = H_G,nᵀ C_G H_G,n (k_G, k_G) where k_G < s_G (a product then costs k_G²
+    instead of s_G²), the compliance block C_G itself elsewhere (contacts crowding a body's
+    boundary, as soft–soft rows both ways do). W_nn = Σ_G W_G + H_nᵀ D H_n, D the 1x1 blocks and
+    the blocks kept as compliance.
 
     ``dof``, ``hn`` (nc, m) packed normal rows; the compliance arrays ``block``, ``start``,
-    ``offset``, ``values``. Returns (ptr (n_blocks + 1,), contacts (Σ k_G,): block G's contacts
-    are contacts[ptr[G]:ptr[G + 1]] in increasing order; woff (n_blocks + 1,), wval: W_G row-major
-    at wval[woff[G]:woff[G + 1]]). Cost: one column of C_G per touched dof, then k_G² short dot
-    products, far less than the s x s x k product of the whole group (s dofs)."""
+    ``offset``, ``values``. Returns (dense (n_blocks,) bool: whether block G has its W_G; ptr
+    (n_blocks + 1,), contacts: the contacts of a dense block G are contacts[ptr[G]:ptr[G + 1]],
+    in increasing order (none for the others); woff (n_blocks + 1,), wval: W_G row-major at
+    wval[woff[G]:woff[G + 1]]). Building W_G costs one column of C_G per touched dof, then
+    k_G² short dot products."""
     nc, m = dof.shape
     nb = start.size - 1
     count = np.zeros(nb, np.int64)
@@ -204,6 +208,11 @@ def normal_groups(dof, hn, block, start, offset, values):
             if d >= 0 and block[d] >= 0 and last[block[d]] != c:
                 last[block[d]] = c
                 count[block[d]] += 1
+    dense = np.zeros(nb, np.bool_)
+    for g in range(nb):
+        dense[g] = 0 < count[g] < start[g + 1] - start[g]
+        if not dense[g]:
+            count[g] = 0
     ptr = np.zeros(nb + 1, np.int64)
     woff = np.zeros(nb + 1, np.int64)
     for g in range(nb):
@@ -215,7 +224,7 @@ def normal_groups(dof, hn, block, start, offset, values):
     for c in range(nc):
         for a in range(m):
             d = dof[c, a]
-            if d >= 0 and block[d] >= 0 and last[block[d]] != c:
+            if d >= 0 and block[d] >= 0 and dense[block[d]] and last[block[d]] != c:
                 last[block[d]] = c
                 contacts[fill[block[d]]] = c
                 fill[block[d]] += 1
@@ -242,4 +251,4 @@ def normal_groups(dof, hn, block, start, offset, values):
                 if d >= 0 and block[d] == g:
                     for j in range(k):
                         wval[woff[g] + i * k + j] += hn[c, a] * y[d - s0, j]
-    return ptr, contacts, woff, wval
+    return dense, ptr, contacts, woff, wval

@@ -80,8 +80,8 @@ class MPRGP:
             r[:, 0] = problem.impulse[:, 0]
             c = problem.compliance
             groups = normal_groups(problem.dof, problem.hn, c.block, c.start, c.offset, c.values)
-            iterations = mprgp(problem.dof, problem.hn, c.diagonal, c.block, *groups,
-                               np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
+            op = (problem.dof, problem.hn, *c.arrays(), *groups)
+            iterations = mprgp(op, np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
                                *self.measure.codes(problem, self.tolerance), self.max_iterations)
             problem.impulse[:] = r
         v = problem.free_velocity()
@@ -91,12 +91,14 @@ class MPRGP:
 
 
 @numba.njit(cache=True)
-def _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, x, xs, hx, out):
-    """out = S W_nn S x (nc,) for x (nc,), S = diag(s): the rigid and wall dofs' part
-    H_nᵀ D H_n through the 1x1 compliance blocks D (packed rows ``dof``, ``hn``), the soft
-    bodies' part from their dense blocks W_G (``ptr``, ``contacts``, ``woff``, ``wval`` of
-    :func:`compute.contact.delassus.normal_groups`); ``xs`` (nc,), ``hx`` (n packed dofs,, zero
-    on entry and on return) work arrays."""
+def _times(op, s, x, xs, hx, vx, out):
+    """out = S W_nn S x (nc,) for x (nc,), S = diag(s), W_nn given by ``op`` = (dof, hn, diagonal,
+    block, start, offset, values, dense, ptr, contacts, woff, wval) in the two forms of
+    :func:`compute.contact.delassus.normal_groups`: through the compliance (packed rows ``dof``,
+    ``hn``; the compliance arrays) for the 1x1 blocks and the blocks without their W_G, as a
+    scatter, one product per block and a gather; through W_G for the others. ``xs`` (nc,),
+    ``hx`` (n packed dofs,, zero on entry and on return), ``vx`` (n,) work arrays."""
+    dof, hn, diagonal, block, start, offset, values, dense, ptr, contacts, woff, wval = op
     nc, m = dof.shape
     for c in range(nc):
         xs[c] = s[c] * x[c]
@@ -104,21 +106,33 @@ def _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, x, xs, hx, ou
         if xs[c] != 0.0:
             for a in range(m):
                 d = dof[c, a]
-                if d >= 0 and block[d] < 0:
+                if d >= 0 and (block[d] < 0 or not dense[block[d]]):
                     hx[d] += hn[c, a] * xs[c]
+    for g in range(dense.size):
+        if not dense[g]:
+            s0, n = start[g], start[g + 1] - start[g]
+            for i in range(n):
+                acc = 0.0
+                row = offset[g] + i * n
+                for j in range(n):
+                    acc += values[row + j] * hx[s0 + j]
+                vx[s0 + i] = acc
     for c in range(nc):
         u = 0.0
         for a in range(m):
             d = dof[c, a]
-            if d >= 0 and block[d] < 0:
-                u += hn[c, a] * diagonal[d] * hx[d]
+            if d >= 0:
+                if block[d] < 0:
+                    u += hn[c, a] * diagonal[d] * hx[d]
+                elif not dense[block[d]]:
+                    u += hn[c, a] * vx[d]
         out[c] = u
     for c in range(nc):
         for a in range(m):
             d = dof[c, a]
             if d >= 0:
                 hx[d] = 0.0
-    for g in range(ptr.size - 1):
+    for g in range(dense.size):
         k = ptr[g + 1] - ptr[g]
         for i in range(k):
             row = woff[g] + i * k
@@ -144,19 +158,20 @@ def _error(kind, tol, bound, wnn, s, y, g, q, u, w, r, mu, size):
 
 
 @numba.njit(cache=True)
-def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, tol, bound, max_iterations):
+def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     """Minimise ½ r_nᵀ W_nn r_n + q_nᵀ r_n over r_n ≥ 0 (module docstring), in place.
 
-    ``dof``, ``hn`` (nc, m) the packed normal rows of H; ``diagonal``, ``block`` of the compliance
-    (:class:`compute.contact.compliance.Compliance`); ``ptr``, ``contacts``, ``woff``, ``wval``
-    the soft bodies' blocks of W_nn (:func:`compute.contact.delassus.normal_groups`); ``wnn``
+    ``op`` W_nn (:func:`_times`): the packed normal rows ``dof``, ``hn`` (nc, m) of H, the
+    compliance arrays (:meth:`compute.contact.compliance.Compliance.arrays`) and the soft bodies'
+    blocks of W_nn (:func:`compute.contact.delassus.normal_groups`); ``wnn``
     (nc,) the diagonal of W_nn;
     ``q`` (nc, 2) the local free velocities (ũ_n, u_t at r = 0); ``r`` (nc, 2) the warm start in
     (r_n used, projected on r_n ≥ 0), the solution out (r_t = 0); (kind, tol, bound) the error
     measure. Returns the iterations (products with W, the norm estimate's left out)."""
     nc = q.shape[0]
-    n = diagonal.size
+    n = op[2].size  # the packed dofs (the compliance diagonal)
     hx = np.zeros(n)
+    vx = np.empty(n)
     xs = np.empty(nc)
     s = np.empty(nc)
     for c in range(nc):
@@ -165,7 +180,7 @@ def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, 
     p = np.ones(nc)  # power iterations for ‖S W S‖ (unit diagonal: at least 1)
     norm = 1.0
     for _ in range(POWER_ITERATIONS):
-        _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, p, xs, hx, ap)
+        _times(op, s, p, xs, hx, vx, ap)
         size = np.sqrt(np.dot(ap, ap))
         if size == 0.0:
             break
@@ -187,14 +202,14 @@ def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, 
     y_half = np.empty(nc)
     g_half = np.empty(nc)
     d = np.empty(nc)
-    _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, y, xs, hx, g)
+    _times(op, s, y, xs, hx, vx, g)
     g += b
     for c in range(nc):
         p[c] = g[c] if y[c] > 0.0 else 0.0
     iterations = 0
     while True:
         if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol:
-            _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, y, xs, hx, g)  # judge the exact g
+            _times(op, s, y, xs, hx, vx, g)  # judge the exact g
             g += b
             if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or iterations >= max_iterations:
                 break
@@ -209,7 +224,7 @@ def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, 
             elif g[c] < 0.0:
                 beta2 += g[c] * g[c]
         if beta2 <= GAMMA * GAMMA * phi_tilde_phi:
-            _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, p, xs, hx, ap)
+            _times(op, s, p, xs, hx, vx, ap)
             pap = np.dot(p, ap)
             alpha_cg = np.dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
             alpha_f = np.inf
@@ -237,7 +252,7 @@ def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, 
                 while True:
                     for c in range(nc):
                         y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
-                    _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, y, xs, hx, g)
+                    _times(op, s, y, xs, hx, vx, g)
                     g += b
                     if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
                         break
@@ -247,7 +262,7 @@ def mprgp(dof, hn, diagonal, block, ptr, contacts, woff, wval, wnn, q, r, kind, 
         else:  # proportioning: release contacts along the chopped gradient
             for c in range(nc):
                 d[c] = g[c] if y[c] <= 0.0 and g[c] < 0.0 else 0.0
-            _times(dof, hn, diagonal, block, ptr, contacts, woff, wval, s, d, xs, hx, ap)
+            _times(op, s, d, xs, hx, vx, ap)
             dad = np.dot(d, ap)
             if dad <= 0.0:
                 break

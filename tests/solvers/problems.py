@@ -58,10 +58,12 @@ def dense_form(p: ContactProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return C, H, H.T @ C @ H, b
 
 
-def bodies_problem(rng, nc: int, sizes=(6, 9, 4, 12), n_rigid: int = 9) -> ContactProblem:
+def bodies_problem(rng, nc: int, sizes=(6, 40, 60, 12), n_rigid: int = 9, crowded: int = 10) -> ContactProblem:
     """A frictionless problem over several soft bodies (dense SPD compliance blocks of ``sizes``
-    dofs, one left without contact) and ``n_rigid`` 1x1 dofs: each row touches up to 4 dofs drawn
-    from all of them, so rows couple bodies with each other and with rigid dofs."""
+    dofs, the last left without contact) and ``n_rigid`` 1x1 dofs: each row touches up to 4 dofs,
+    drawn from all of them (rows couple bodies with each other and with rigid dofs), except the
+    first ``crowded`` rows, drawn from the first body and the rigid dofs (a body with more
+    contacts than dofs)."""
     n_soft = sum(sizes)
     n = n_soft + n_rigid
     blocks, start = [], [0]
@@ -74,9 +76,10 @@ def bodies_problem(rng, nc: int, sizes=(6, 9, 4, 12), n_rigid: int = 9) -> Conta
     touchable = np.concatenate([np.arange(start[-2]), n_soft + np.arange(n_rigid)])  # the last body: no contact
     dof = np.full((nc, MAX_DOFS), -1, np.int64)
     hn, ht = np.zeros((nc, MAX_DOFS)), np.zeros((nc, MAX_DOFS))
+    first = np.concatenate([np.arange(start[1]), n_soft + np.arange(n_rigid)])
     for c in range(nc):
         k = int(rng.integers(1, 5))
-        dof[c, :k] = rng.choice(touchable, k, replace=False)
+        dof[c, :k] = rng.choice(first if c < crowded else touchable, k, replace=False)
         hn[c, :k] = rng.normal(size=k)
         ht[c, :k] = rng.normal(size=k)
     v0 = rng.normal(size=n)

@@ -513,10 +513,11 @@ def test_mprgp_refuses_friction():
 
 
 def test_mprgp_product_is_the_dense_normal_delassus():
-    """MPRGP applies W_nn as the rigid dofs' part through the 1x1 compliance blocks plus one dense
-    block per soft body (compute.contact.delassus.normal_groups), on problems where rows couple
-    several bodies and rigid dofs: the product S W_nn S x equals the dense H_nᵀ C H_n of the
-    test's own H and C; and MPRGP on them gives the oracle's contact velocities."""
+    """MPRGP applies W_nn through the compliance (1x1 blocks, and soft bodies crowded with
+    contacts) and through one dense W_G per other soft body (compute.contact.delassus.normal_groups),
+    on problems where rows couple several bodies and rigid dofs: the product S W_nn S x, with the
+    bodies' forms as chosen or all forced to one form, equals the dense H_nᵀ C H_n of the test's
+    own H and C; and MPRGP's answer meets the complementarity conditions with that W."""
     from compute.contact.delassus import normal_groups
     from compute.solvers.mprgp import _times
 
@@ -526,16 +527,46 @@ def test_mprgp_product_is_the_dense_normal_delassus():
         Wnn = W[0::2, 0::2]
         c = p.compliance
         groups = normal_groups(p.dof, p.hn, c.block, c.start, c.offset, c.values)
-        assert groups[0][-1] - groups[0][-2] == 0  # the body without contact has an empty block
+        dense = groups[0]
+        assert not dense[-1]  # the body without contact
         rng = np.random.default_rng(seed)
         s, x = rng.uniform(0.5, 2.0, len(p)), rng.normal(size=len(p))
         hx, out = np.zeros(len(c)), np.empty(len(p))
-        for _ in range(2):  # twice: the work array comes back zeroed
-            _times(p.dof, p.hn, c.diagonal, c.block, *groups, s, x, np.empty(len(p)), hx, out)
-            np.testing.assert_allclose(out, s * (Wnn @ (s * x)), rtol=0, atol=1e-13 * np.abs(Wnn).max())
-        assert not hx.any()
-        expected = solve_contact(W, b, p.mu)
-        report = MPRGP(1e-12, 5000).solve(p)
+        touched = [bool(np.any(_dofs_of(p, c, g))) for g in range(dense.size)]
+        assert dense.any() and any(t and not d for t, d in zip(touched, dense))  # both forms
+        forms = {"as chosen": groups, "all compliance": _forced(np.zeros_like(dense), p, c),
+                 "all W_G": _forced(np.ones_like(dense), p, c)}
+        for form, chosen in forms.items():
+            op = (p.dof, p.hn, *c.arrays(), *chosen)
+            for _ in range(2):  # twice: the work array comes back zeroed
+                _times(op, s, x, np.empty(len(p)), hx, np.empty(len(c)), out)
+                np.testing.assert_allclose(out, s * (Wnn @ (s * x)), rtol=0, atol=1e-13 * np.abs(Wnn).max(),
+                                           err_msg=form)
+            assert not hx.any()
+        report = MPRGP(1e-12, 5000).solve(p)  # the complementarity conditions, with the test's W
         assert report.residual <= 1e-12
-        u, u_ref = W @ p.impulse.ravel() + b, W @ expected.ravel() + b
-        np.testing.assert_allclose(u, u_ref, rtol=0, atol=1e-8 * max(np.abs(u_ref).max(), 1.0))
+        r, u = p.impulse[:, 0], (W @ p.impulse.ravel() + b)[0::2]
+        scale = np.abs(b).max()
+        assert r.min() >= 0.0 and u.min() >= -1e-9 * scale and np.abs(r * u).max() <= 1e-9 * scale * r.max()
+
+
+def _forced(chosen, p, c):
+    """normal_groups' form of W_nn with the bodies ``chosen`` (n_blocks,) given their W_G and the
+    others left to the compliance, W_G made from the test's own dense H and C."""
+    C, H = dense_form(p)[:2]
+    ptr, contacts, wval, woff = [0], [], [], [0]
+    for g in range(len(chosen)):
+        dofs = np.arange(c.start[g], c.start[g + 1])
+        rows = np.flatnonzero(np.any(H[dofs][:, 0::2] != 0.0, axis=0)) if chosen[g] else np.zeros(0, int)
+        Hg = H[dofs][:, 2 * rows]
+        wval.append((Hg.T @ C[np.ix_(dofs, dofs)] @ Hg).ravel())
+        contacts.extend(rows)
+        ptr.append(len(contacts))
+        woff.append(woff[-1] + rows.size**2)
+    return (np.asarray(chosen, bool), np.array(ptr), np.array(contacts, np.int64), np.array(woff),
+            np.concatenate(wval))
+
+
+def _dofs_of(p, c, g):
+    """(nc, m) whether each entry of the problem's rows is a dof of compliance block g."""
+    return (p.dof >= c.start[g]) & (p.dof < c.start[g + 1])
