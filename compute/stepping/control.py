@@ -23,8 +23,9 @@ again. A failure costs as much as many good steps, hence the slow growth
 
 A step that converged but was slow, its accepted sub-steps having taken more than
 ``SLOW_ITERATIONS`` Newton iterations each and more than ``SLOW_SWEEPS`` contact-solve sweeps per
-iteration on average, sends the next steps one level deeper (kept one level above ``max_cuts``,
-so that a failure can still be cut). Why: where a step's contact problems are hard, their cost
+iteration on average, sends the next steps one level deeper, down to ``SLOW_DEPTH`` and at least
+one level above ``max_cuts`` (so that a failure can still be cut): the deeper levels are for
+steps that fail. Why: where a step's contact problems are hard, their cost
 grows much faster than the step's length: in smaller steps the Newton iterations per unit time
 hardly change while the sweeps fall, and the slow step comes before a far slower one. The
 thresholds, judged per step on both counts, come from benchmarks/results/soft_mixture_steps.md
@@ -43,6 +44,7 @@ from compute.stepping.step_stats import StepStats, carrying, spent
 GROW_AFTER = 16  # steps without a new cut before the depth goes down by one
 SLOW_ITERATIONS = 10  # a step with more Newton iterations per accepted sub-step than this
 SLOW_SWEEPS = 30  # and more contact-solve sweeps per iteration than this sends the next ones deeper
+SLOW_DEPTH = 3  # the deepest level (h / 8) that slowness alone sends steps to
 
 
 def slow(iterations: int, sweeps: int, sub_steps: int) -> bool:
@@ -92,7 +94,7 @@ def step_with_cuts(attempt, state, h: float, max_cuts: int):
     rep.cuts, rep.sub_steps, rep.residual, rep.max_penetration = cuts, sub_steps, residual, penetration
     rep.hold_torque = torque
     rep.work, rep.newton_iterations, rep.sweeps = work, work.newton_iterations, work.sweeps
-    if slow(accepted.newton_iterations, accepted.sweeps, sub_steps) and depth < max_cuts - 1:
+    if slow(accepted.newton_iterations, accepted.sweeps, sub_steps) and depth < min(max_cuts - 1, SLOW_DEPTH):
         depth += 1
     depth_accepted = 0 if depth > depth0 else state.cut_accepted + 1
     if depth and depth_accepted >= GROW_AFTER:

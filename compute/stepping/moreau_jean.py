@@ -60,7 +60,11 @@ class Stepper:
     compute.stepping.groups); ``strategy`` iterates a step's equations (compute.stepping.strategies,
     the scene's ``solver.step``)."""
 
-    MAX_CUTS = 4  # a step may be halved this many times before the run stops
+    # A step may be halved this many times before the run stops. Why 6 (h / 64): at P/E = 1 a soft
+    # T3 disk pressed into a pore throat can need more than h / 16 to deform through it (the
+    # 1500-disk κ = 0.2, μ = 0 run, benchmarks/results/high_pressure_newton.md); the steps that
+    # do not fail never go below h / 8 (compute.stepping.control.SLOW_DEPTH).
+    MAX_CUTS = 6
 
     def __init__(self, model, solver=None):
         s = model.scene.solver

@@ -213,3 +213,13 @@ def test_slow_sub_steps_leave_a_level_for_cuts():
     state = State(np.zeros(1), np.zeros(1))
     state, _ = take(attempt, state, 4, max_cuts=3)
     assert state.cut_depth == 2 and min(a for a in attempt.asked if a != "|") == 0.25
+
+
+def test_slowness_alone_goes_no_deeper_than_slow_depth():
+    """With room for more cuts (max_cuts 6, the stepper's), slow steps send the next ones down to
+    h / 2**SLOW_DEPTH only: the deeper levels are for steps that fail."""
+    attempt = CostlyAttempt(lambda h: (SLOW, SLOW * control.SLOW_SWEEPS + 1))
+    state = State(np.zeros(1), np.zeros(1))
+    state, _ = take(attempt, state, 8, max_cuts=6)
+    assert state.cut_depth == control.SLOW_DEPTH
+    assert min(a for a in attempt.asked if a != "|") == 1.0 / 2**control.SLOW_DEPTH

@@ -164,7 +164,7 @@ def test_element_inverting_whatever_the_step_stops_with_a_diagnosis(tmp_path):
 
 def test_contact_misses_at_the_deepest_cut_are_kept_and_reported(tmp_path):
     """Contact solves capped at one NLGS sweep (tolerance 1e-10) miss at every depth: each step
-    is cut down to h / 16, where the misses no longer fail it; the step is taken, its reported
+    is cut down to h / 2**MAX_CUTS, where the misses no longer fail it; the step is taken, its reported
     residual is above the tolerance (what makes a run INCOMPLETE) and the state stays finite."""
     from dataclasses import replace
 
@@ -176,6 +176,7 @@ def test_contact_misses_at_the_deepest_cut_are_kept_and_reported(tmp_path):
     for _ in range(3):
         state, rep = stepper.step(state, 0.05)
         reports.append(rep)
-    assert [r.sub_steps for r in reports][1:] == [16, 16] and reports[0].cuts == stepper.MAX_CUTS
+    deepest = 2**stepper.MAX_CUTS
+    assert [r.sub_steps for r in reports][1:] == [deepest, deepest] and reports[0].cuts == stepper.MAX_CUTS
     assert all(r.residual > 1e-10 for r in reports) and np.isfinite(state.q).all()
     assert state.time == pytest.approx(3.0)
