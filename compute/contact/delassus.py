@@ -61,33 +61,38 @@ class Delassus:
 def _groups(dof, block, n_blocks):
     """The compliance groups and the contacts touching each: (keys (g,), ptr (g + 1,), contacts):
     group q is dense block keys[q] (< n_blocks) or the 1x1 dof keys[q] - n_blocks, touched by
-    contacts[ptr[q]:ptr[q + 1]] (sorted, unique)."""
+    contacts[ptr[q]:ptr[q + 1]] (sorted, unique). A counting sort over the groups, one pass over
+    the rows to count and one to fill."""
     nc, m = dof.shape
-    pairs = np.empty(nc * m, np.int64)
-    cnt = 0
+    n_keys = n_blocks + block.size
+    count = np.zeros(n_keys, np.int64)
+    last = np.full(n_keys, -1, np.int64)
     for c in range(nc):
-        for k in range(m):
-            d = dof[c, k]
+        for a in range(m):
+            d = dof[c, a]
             if d >= 0:
-                b = block[d]
-                pairs[cnt] = (b if b >= 0 else n_blocks + d) * nc + c
-                cnt += 1
-    pairs = np.unique(pairs[:cnt])
-    key = pairs // max(nc, 1)
-    contacts = pairs - key * nc
-    ng = 0
-    for i in range(pairs.size):
-        if i == 0 or key[i] != key[i - 1]:
-            ng += 1
-    keys = np.empty(ng, np.int64)
-    ptr = np.empty(ng + 1, np.int64)
-    q = -1
-    for i in range(pairs.size):
-        if i == 0 or key[i] != key[i - 1]:
-            q += 1
-            keys[q] = key[i]
-            ptr[q] = i
-    ptr[ng] = pairs.size
+                key = block[d] if block[d] >= 0 else n_blocks + d
+                if last[key] != c:
+                    last[key] = c
+                    count[key] += 1
+    keys = np.flatnonzero(count)
+    ptr = np.zeros(keys.size + 1, np.int64)
+    slot = np.full(n_keys, -1, np.int64)  # group of each key
+    for q in range(keys.size):
+        ptr[q + 1] = ptr[q] + count[keys[q]]
+        slot[keys[q]] = q
+    contacts = np.empty(ptr[-1], np.int64)
+    fill = ptr[:-1].copy()
+    last[:] = -1
+    for c in range(nc):
+        for a in range(m):
+            d = dof[c, a]
+            if d >= 0:
+                key = block[d] if block[d] >= 0 else n_blocks + d
+                if last[key] != c:
+                    last[key] = c
+                    contacts[fill[slot[key]]] = c
+                    fill[slot[key]] += 1
     return keys, ptr, contacts
 
 
@@ -200,34 +205,24 @@ def normal_groups(dof, hn, block, start, offset, values):
     k_G² short dot products."""
     nc, m = dof.shape
     nb = start.size - 1
-    count = np.zeros(nb, np.int64)
-    last = np.full(nb, -1, np.int64)
-    for c in range(nc):
-        for a in range(m):
-            d = dof[c, a]
-            if d >= 0 and block[d] >= 0 and last[block[d]] != c:
-                last[block[d]] = c
-                count[block[d]] += 1
+    keys, group_ptr, group_contacts = _groups(dof, block, nb)
     dense = np.zeros(nb, np.bool_)
-    for g in range(nb):
-        dense[g] = 0 < count[g] < start[g + 1] - start[g]
-        if not dense[g]:
-            count[g] = 0
+    first = np.zeros(nb, np.int64)  # where a dense block's contacts start in group_contacts
+    count = np.zeros(nb, np.int64)
+    for q in range(keys.size):
+        g = keys[q]
+        if g < nb and group_ptr[q + 1] - group_ptr[q] < start[g + 1] - start[g]:
+            dense[g] = True
+            first[g] = group_ptr[q]
+            count[g] = group_ptr[q + 1] - group_ptr[q]
     ptr = np.zeros(nb + 1, np.int64)
     woff = np.zeros(nb + 1, np.int64)
     for g in range(nb):
         ptr[g + 1] = ptr[g] + count[g]
         woff[g + 1] = woff[g] + count[g] * count[g]
     contacts = np.empty(ptr[nb], np.int64)
-    fill = ptr[:-1].copy()
-    last[:] = -1
-    for c in range(nc):
-        for a in range(m):
-            d = dof[c, a]
-            if d >= 0 and block[d] >= 0 and dense[block[d]] and last[block[d]] != c:
-                last[block[d]] = c
-                contacts[fill[block[d]]] = c
-                fill[block[d]] += 1
+    for g in range(nb):
+        contacts[ptr[g]:ptr[g + 1]] = group_contacts[first[g]:first[g] + count[g]]
     wval = np.zeros(woff[nb])
     for g in range(nb):
         k = count[g]

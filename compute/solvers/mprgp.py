@@ -21,13 +21,12 @@ reduced free gradient φ̃ = min(r / ᾱ, φ) on F:
   length ᾱ = 1.9 / ‖W‖ (an expansion: the free set may grow by many contacts at once);
 - otherwise a proportioning step along β (contacts released from r = 0).
 
-Each iteration costs one product with W_nn, whose two parts are applied as each is cheapest
-(:func:`_times`): the rigid and wall dofs' part H_nᵀ D H_n through the 1x1 compliance blocks D
-(no matrix: a scatter and a gather over the rows), and each soft body's part as the dense
-k × k matrix W_G = H_G,nᵀ C_G H_G,n of its k contacts
-(:func:`compute.contact.delassus.normal_groups`), built once per solve for about the cost of
-two products through its s × s compliance block C_G, after which a product costs k² instead of
-a column of C_G per touched dof. (The whole W assembled in block-CSR,
+Each iteration costs one product with W_nn (:func:`_times`), in the cheapest form for each part
+(:func:`compute.contact.delassus.normal_groups`): the rigid and wall dofs' part H_nᵀ D H_n
+through the 1x1 compliance blocks D (a scatter and a gather over the rows); a soft body with
+fewer contacts k than contact dofs s as its own dense k × k W_G = H_G,nᵀ C_G H_G,n, built once
+per solve; a body crowded with contacts (soft–soft rows both ways) through its s × s
+compliance block C_G, one dense product per body. (The whole W assembled in block-CSR,
 :class:`compute.contact.delassus.Delassus`, costs more to build for each new problem than the
 iterations it would save: a problem lasts about two solves in a mixture's Newton loop.) ‖W‖ is
 estimated by a few power iterations; an expansion that would not lower the quadratic, ᾱ being
@@ -73,19 +72,18 @@ class MPRGP:
         if np.any(problem.mu > 0.0):
             raise ValueError("MPRGP solves frictionless contact problems only: a contact has μ > 0")
         iterations = 0
-        carr = problem.compliance.arrays()
+        c = problem.compliance
         if len(problem):
             q = local_free_velocity(problem)
             r = np.zeros((len(problem), 2))
             r[:, 0] = problem.impulse[:, 0]
-            c = problem.compliance
             groups = normal_groups(problem.dof, problem.hn, c.block, c.start, c.offset, c.values)
             op = (problem.dof, problem.hn, *c.arrays(), *groups)
             iterations = mprgp(op, np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
                                *self.measure.codes(problem, self.tolerance), self.max_iterations)
             problem.impulse[:] = r
         v = problem.free_velocity()
-        apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
+        apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *c.arrays())
         v = problem.velocities(v)
         return SolveReport(v, iterations, self.measure.error(problem, self.tolerance, v))
 
