@@ -67,6 +67,7 @@ def _groups(dof, block, n_blocks):
     n_keys = n_blocks + block.size
     count = np.zeros(n_keys, np.int64)
     last = np.full(n_keys, -1, np.int64)
+    first_entry = np.full((nc, m), -1, np.int64)  # the group of a row entry, where it is the row's first in it
     for c in range(nc):
         for a in range(m):
             d = dof[c, a]
@@ -75,24 +76,20 @@ def _groups(dof, block, n_blocks):
                 if last[key] != c:
                     last[key] = c
                     count[key] += 1
+                    first_entry[c, a] = key
     keys = np.flatnonzero(count)
     ptr = np.zeros(keys.size + 1, np.int64)
-    slot = np.full(n_keys, -1, np.int64)  # group of each key
+    fill = np.zeros(n_keys, np.int64)  # the next place of each group's contacts
     for q in range(keys.size):
         ptr[q + 1] = ptr[q] + count[keys[q]]
-        slot[keys[q]] = q
+        fill[keys[q]] = ptr[q]
     contacts = np.empty(ptr[-1], np.int64)
-    fill = ptr[:-1].copy()
-    last[:] = -1
     for c in range(nc):
         for a in range(m):
-            d = dof[c, a]
-            if d >= 0:
-                key = block[d] if block[d] >= 0 else n_blocks + d
-                if last[key] != c:
-                    last[key] = c
-                    contacts[fill[slot[key]]] = c
-                    fill[slot[key]] += 1
+            key = first_entry[c, a]
+            if key >= 0:
+                contacts[fill[key]] = c
+                fill[key] += 1
     return keys, ptr, contacts
 
 
