@@ -189,3 +189,17 @@ def test_per_friction_preparation_jams_each_friction(tmp_path):
         Z = _Z_of_last_frame(tmp_path / "rigid" / f"mu{r['mu']:g}_s1" / "jamming" / "out", 16)
         assert r["prepared"]["Z"] == pytest.approx(Z, rel=1e-12)
         assert r["prepared"]["phi"] == pytest.approx(_phi_of_scene(tmp_path / r["scene"]), rel=1e-12)
+
+
+def test_frictional_compaction_solves_contacts_to_the_looser_tolerance():
+    """Frictional compactions solve their contacts to 1e-3 (pre.mixture.frictional_tolerance),
+    frictionless ones to QUASI_STATIC's 1e-4; an explicit override wins at either friction."""
+    from pre.mixture import QUASI_STATIC
+
+    box = (0.0, 4.0, 0.0, 4.0)
+    assert compaction_parameters(box, 0.2, [1e-3])["solver"]["contact_tolerance"] == 1e-3
+    assert compaction_parameters(box, 0.0, [1e-3])["solver"]["contact_tolerance"] == QUASI_STATIC[
+        "solver.contact_tolerance"] == 1e-4
+    for mu in (0.0, 0.2):
+        forced = compaction_parameters(box, mu, [1e-3], {"solver.contact_tolerance": 1e-5})
+        assert forced["solver"]["contact_tolerance"] == 1e-5
