@@ -30,10 +30,14 @@ import checkout  # noqa: E402
 
 
 class Recorded:
-    """A contact solver that records (sweeps, error, seconds) of each solve in ``log``."""
+    """A contact solver that records (sweeps, error, seconds) of each solve in ``log``; its other
+    attributes (tolerance, measure, …) are the solver's."""
 
     def __init__(self, solver, log: list):
-        self.solver, self.log, self.tolerance = solver, log, solver.tolerance
+        self.solver, self.log = solver, log
+
+    def __getattr__(self, name):
+        return getattr(self.solver, name)
 
     def solve(self, problem):
         t = time.perf_counter()
