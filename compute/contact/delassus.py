@@ -192,14 +192,17 @@ def normal_groups(dof, hn, block, start, offset, values):
     it: the dense W_G = H_G,nᵀ C_G H_G,n (k_G, k_G) where k_G < s_G (a product then costs k_G²
     instead of s_G²), the compliance block C_G itself elsewhere (contacts crowding a body's
     boundary, as soft–soft rows both ways do). W_nn = Σ_G W_G + H_nᵀ D H_n, D the 1x1 blocks and
-    the blocks kept as compliance.
+    the blocks kept as compliance. Both forms are symmetric and kept as their upper triangles,
+    packed row by row (:func:`packed_times`): a product then reads half the values, and reading
+    them is most of its cost once a packing's blocks outgrow the processor's caches.
 
     ``dof``, ``hn`` (nc, m) packed normal rows; the compliance arrays ``block``, ``start``,
     ``offset``, ``values``. Returns (dense (n_blocks,) bool: whether block G has its W_G; ptr
     (n_blocks + 1,), contacts: the contacts of a dense block G are contacts[ptr[G]:ptr[G + 1]],
-    in increasing order (none for the others); woff (n_blocks + 1,), wval: W_G row-major at
-    wval[woff[G]:woff[G + 1]]). Building W_G costs one column of C_G per touched dof, then
-    k_G² short dot products."""
+    in increasing order (none for the others); woff (n_blocks + 1,), wval: the triangle of W_G
+    at wval[woff[G]:woff[G + 1]]; coff (n_blocks + 1,), cval: the triangle of C_G of a block
+    without its W_G at cval[coff[G]:coff[G + 1]]). Building W_G costs one column of C_G per
+    touched dof, then k_G² / 2 short dot products."""
     nc, m = dof.shape
     nb = start.size - 1
     keys, group_ptr, group_contacts = _groups(dof, block, nb)
@@ -214,19 +217,28 @@ def normal_groups(dof, hn, block, start, offset, values):
             count[g] = group_ptr[q + 1] - group_ptr[q]
     ptr = np.zeros(nb + 1, np.int64)
     woff = np.zeros(nb + 1, np.int64)
+    coff = np.zeros(nb + 1, np.int64)
     for g in range(nb):
         ptr[g + 1] = ptr[g] + count[g]
-        woff[g + 1] = woff[g] + count[g] * count[g]
+        woff[g + 1] = woff[g] + count[g] * (count[g] + 1) // 2
+        s = 0 if dense[g] else start[g + 1] - start[g]
+        coff[g + 1] = coff[g] + s * (s + 1) // 2
     contacts = np.empty(ptr[nb], np.int64)
     for g in range(nb):
         contacts[ptr[g]:ptr[g + 1]] = group_contacts[first[g]:first[g] + count[g]]
     wval = np.zeros(woff[nb])
+    cval = np.empty(coff[nb])
     for g in range(nb):
-        k = count[g]
-        if k == 0:
-            continue
         s0 = start[g]
         s = start[g + 1] - s0
+        if not dense[g]:
+            q = coff[g]
+            for i in range(s):
+                for j in range(i, s):
+                    cval[q] = values[offset[g] + i * s + j]
+                    q += 1
+            continue
+        k = count[g]
         y = np.zeros((s, k))  # C_G H_G,n, column by column
         for j in range(k):
             c = contacts[ptr[g] + j]
@@ -236,11 +248,34 @@ def normal_groups(dof, hn, block, start, offset, values):
                     o = offset[g] + (d - s0) * s  # row d of the symmetric block: its column d
                     for i in range(s):
                         y[i, j] += hn[c, a] * values[o + i]
+        w = np.zeros((k, k))
         for i in range(k):
             c = contacts[ptr[g] + i]
             for a in range(m):
                 d = dof[c, a]
                 if d >= 0 and block[d] == g:
-                    for j in range(k):
-                        wval[woff[g] + i * k + j] += hn[c, a] * y[d - s0, j]
-    return dense, ptr, contacts, woff, wval
+                    for j in range(i, k):
+                        w[i, j] += hn[c, a] * y[d - s0, j]
+        q = woff[g]
+        for i in range(k):
+            for j in range(i, k):
+                wval[q] = w[i, j]
+                q += 1
+    return dense, ptr, contacts, woff, wval, coff, cval
+
+
+@numba.njit(cache=True)
+def packed_times(tri, n, x, y):
+    """y += A x for the symmetric (n, n) A whose upper triangle ``tri`` (n (n + 1) / 2,) is packed
+    row by row; ``x``, ``y`` (n,) (any 1D views). Each value is read once and used twice."""
+    q = 0
+    for i in range(n):
+        xi = x[i]
+        acc = tri[q] * xi
+        q += 1
+        for j in range(i + 1, n):
+            a = tri[q]
+            q += 1
+            acc += a * x[j]
+            y[j] += a * xi
+        y[i] += acc

@@ -26,7 +26,9 @@ Each iteration costs one product with W_nn (:func:`_times`), in the cheapest for
 through the 1x1 compliance blocks D (a scatter and a gather over the rows); a soft body with
 fewer contacts k than contact dofs s as its own dense k × k W_G = H_G,nᵀ C_G H_G,n, built once
 per solve; a body crowded with contacts (soft–soft rows both ways) through its s × s
-compliance block C_G, one dense product per body. (The whole W assembled in block-CSR,
+compliance block C_G, one dense product per body. Both are symmetric and kept as packed upper
+triangles, each value read once for two products (:func:`compute.contact.delassus.packed_times`):
+reading them is most of a product's cost once a packing's blocks outgrow the caches. (The whole W assembled in block-CSR,
 :class:`compute.contact.delassus.Delassus`, costs more to build for each new problem than the
 iterations it would save: a problem lasts about two solves in a mixture's Newton loop.) ‖W‖ is
 estimated by a few power iterations; an expansion that would not lower the quadratic, ᾱ being
@@ -46,7 +48,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from compute.contact.delassus import normal_groups
+from compute.contact.delassus import normal_groups, packed_times
 from compute.contact.residual import Measure, local_contact_error
 from compute.solvers.interior_point import local_free_velocity
 from compute.solvers.nlgs import apply_impulses
@@ -89,14 +91,16 @@ class MPRGP:
 
 
 @numba.njit(cache=True)
-def _times(op, s, x, xs, hx, vx, out):
+def _times(op, s, x, work, out):
     """out = S W_nn S x (nc,) for x (nc,), S = diag(s), W_nn given by ``op`` = (dof, hn, diagonal,
-    block, start, offset, values, dense, ptr, contacts, woff, wval) in the two forms of
-    :func:`compute.contact.delassus.normal_groups`: through the compliance (packed rows ``dof``,
-    ``hn``; the compliance arrays) for the 1x1 blocks and the blocks without their W_G, as a
-    scatter, one product per block and a gather; through W_G for the others. ``xs`` (nc,),
-    ``hx`` (n packed dofs,, zero on entry and on return), ``vx`` (n,) work arrays."""
-    dof, hn, diagonal, block, start, offset, values, dense, ptr, contacts, woff, wval = op
+    block, start, offset, values, dense, ptr, contacts, woff, wval, coff, cval) in the two forms
+    of :func:`compute.contact.delassus.normal_groups`: through the compliance (packed rows
+    ``dof``, ``hn``; the 1x1 blocks ``diagonal``, the packed triangles ``cval`` of the blocks
+    without their W_G) as a scatter, one product per block and a gather; through the packed W_G
+    for the others, on their contacts gathered. ``work`` = (xs (nc,), hx (n packed dofs,), zero
+    on entry and on return, vx (n,), gx, gy (contacts of the W_G,)) :func:`_work`'s arrays."""
+    dof, hn, diagonal, block, start, offset, values, dense, ptr, contacts, woff, wval, coff, cval = op
+    xs, hx, vx, gx, gy = work
     nc, m = dof.shape
     for c in range(nc):
         xs[c] = s[c] * x[c]
@@ -108,13 +112,9 @@ def _times(op, s, x, xs, hx, vx, out):
                     hx[d] += hn[c, a] * xs[c]
     for g in range(dense.size):
         if not dense[g]:
-            s0, n = start[g], start[g + 1] - start[g]
-            for i in range(n):
-                acc = 0.0
-                row = offset[g] + i * n
-                for j in range(n):
-                    acc += values[row + j] * hx[s0 + j]
-                vx[s0 + i] = acc
+            s0, s1 = start[g], start[g + 1]
+            vx[s0:s1] = 0.0
+            packed_times(cval[coff[g]:coff[g + 1]], s1 - s0, hx[s0:s1], vx[s0:s1])
     for c in range(nc):
         u = 0.0
         for a in range(m):
@@ -130,16 +130,25 @@ def _times(op, s, x, xs, hx, vx, out):
             d = dof[c, a]
             if d >= 0:
                 hx[d] = 0.0
+    for i in range(gx.size):
+        gx[i] = xs[contacts[i]]
+        gy[i] = 0.0
     for g in range(dense.size):
-        k = ptr[g + 1] - ptr[g]
-        for i in range(k):
-            row = woff[g] + i * k
-            acc = 0.0
-            for j in range(k):
-                acc += wval[row + j] * xs[contacts[ptr[g] + j]]
-            out[contacts[ptr[g] + i]] += acc
+        if ptr[g + 1] > ptr[g]:
+            packed_times(wval[woff[g]:woff[g + 1]], ptr[g + 1] - ptr[g], gx[ptr[g]:ptr[g + 1]],
+                         gy[ptr[g]:ptr[g + 1]])
+    for i in range(gy.size):
+        out[contacts[i]] += gy[i]
     for c in range(nc):
         out[c] *= s[c]
+
+
+@numba.njit(cache=True)
+def _work(op, nc):
+    """The work arrays of :func:`_times` for ``op`` and ``nc`` contacts."""
+    n = op[2].size  # the packed dofs (the compliance diagonal)
+    nd = op[9].size  # the contacts of the blocks with their W_G
+    return np.empty(nc), np.zeros(n), np.empty(n), np.empty(nd), np.empty(nd)
 
 
 @numba.njit(cache=True)
@@ -167,10 +176,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     (r_n used, projected on r_n ≥ 0), the solution out (r_t = 0); (kind, tol, bound) the error
     measure. Returns the iterations (products with W, the norm estimate's left out)."""
     nc = q.shape[0]
-    n = op[2].size  # the packed dofs (the compliance diagonal)
-    hx = np.zeros(n)
-    vx = np.empty(n)
-    xs = np.empty(nc)
+    work = _work(op, nc)
     s = np.empty(nc)
     for c in range(nc):
         s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
@@ -178,7 +184,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     p = np.ones(nc)  # power iterations for ‖S W S‖ (unit diagonal: at least 1)
     norm = 1.0
     for _ in range(POWER_ITERATIONS):
-        _times(op, s, p, xs, hx, vx, ap)
+        _times(op, s, p, work, ap)
         size = np.sqrt(np.dot(ap, ap))
         if size == 0.0:
             break
@@ -200,14 +206,14 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     y_half = np.empty(nc)
     g_half = np.empty(nc)
     d = np.empty(nc)
-    _times(op, s, y, xs, hx, vx, g)
+    _times(op, s, y, work, g)
     g += b
     for c in range(nc):
         p[c] = g[c] if y[c] > 0.0 else 0.0
     iterations = 0
     while True:
         if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol:
-            _times(op, s, y, xs, hx, vx, g)  # judge the exact g
+            _times(op, s, y, work, g)  # judge the exact g
             g += b
             if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or iterations >= max_iterations:
                 break
@@ -222,7 +228,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
             elif g[c] < 0.0:
                 beta2 += g[c] * g[c]
         if beta2 <= GAMMA * GAMMA * phi_tilde_phi:
-            _times(op, s, p, xs, hx, vx, ap)
+            _times(op, s, p, work, ap)
             pap = np.dot(p, ap)
             alpha_cg = np.dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
             alpha_f = np.inf
@@ -250,7 +256,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
                 while True:
                     for c in range(nc):
                         y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
-                    _times(op, s, y, xs, hx, vx, g)
+                    _times(op, s, y, work, g)
                     g += b
                     if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
                         break
@@ -260,7 +266,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
         else:  # proportioning: release contacts along the chopped gradient
             for c in range(nc):
                 d[c] = g[c] if y[c] <= 0.0 and g[c] < 0.0 else 0.0
-            _times(op, s, d, xs, hx, vx, ap)
+            _times(op, s, d, work, ap)
             dad = np.dot(d, ap)
             if dad <= 0.0:
                 break

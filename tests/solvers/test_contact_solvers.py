@@ -515,11 +515,12 @@ def test_mprgp_refuses_friction():
 def test_mprgp_product_is_the_dense_normal_delassus():
     """MPRGP applies W_nn through the compliance (1x1 blocks, and soft bodies crowded with
     contacts) and through one dense W_G per other soft body (compute.contact.delassus.normal_groups),
-    on problems where rows couple several bodies and rigid dofs: the product S W_nn S x, with the
-    bodies' forms as chosen or all forced to one form, equals the dense H_nᵀ C H_n of the test's
-    own H and C; and MPRGP's answer meets the complementarity conditions with that W."""
+    both kept as packed upper triangles, on problems where rows couple several bodies and rigid
+    dofs: the product S W_nn S x, with the bodies' forms as chosen or all forced to one form,
+    equals the dense H_nᵀ C H_n of the test's own H and C; and MPRGP's answer meets the
+    complementarity conditions with that W."""
     from compute.contact.delassus import normal_groups
-    from compute.solvers.mprgp import _times
+    from compute.solvers.mprgp import _times, _work
 
     for seed in range(5):
         p = bodies_problem(np.random.default_rng(400 + seed), 24)
@@ -531,18 +532,19 @@ def test_mprgp_product_is_the_dense_normal_delassus():
         assert not dense[-1]  # the body without contact
         rng = np.random.default_rng(seed)
         s, x = rng.uniform(0.5, 2.0, len(p)), rng.normal(size=len(p))
-        hx, out = np.zeros(len(c)), np.empty(len(p))
+        out = np.empty(len(p))
         touched = [bool(np.any(_dofs_of(p, c, g))) for g in range(dense.size)]
         assert dense.any() and any(t and not d for t, d in zip(touched, dense))  # both forms
         forms = {"as chosen": groups, "all compliance": _forced(np.zeros_like(dense), p, c),
                  "all W_G": _forced(np.ones_like(dense), p, c)}
         for form, chosen in forms.items():
             op = (p.dof, p.hn, *c.arrays(), *chosen)
-            for _ in range(2):  # twice: the work array comes back zeroed
-                _times(op, s, x, np.empty(len(p)), hx, np.empty(len(c)), out)
+            work = _work(op, len(p))
+            for _ in range(2):  # twice: the work array hx comes back zeroed
+                _times(op, s, x, work, out)
                 np.testing.assert_allclose(out, s * (Wnn @ (s * x)), rtol=0, atol=1e-13 * np.abs(Wnn).max(),
                                            err_msg=form)
-            assert not hx.any()
+            assert not work[1].any()
         report = MPRGP(1e-12, 5000).solve(p)  # the complementarity conditions, with the test's W
         assert report.residual <= 1e-12
         r, u = p.impulse[:, 0], (W @ p.impulse.ravel() + b)[0::2]
@@ -552,19 +554,23 @@ def test_mprgp_product_is_the_dense_normal_delassus():
 
 def _forced(chosen, p, c):
     """normal_groups' form of W_nn with the bodies ``chosen`` (n_blocks,) given their W_G and the
-    others left to the compliance, W_G made from the test's own dense H and C."""
+    others left to their compliance block, both as packed upper triangles made from the test's
+    own dense H and C."""
     C, H = dense_form(p)[:2]
-    ptr, contacts, wval, woff = [0], [], [], [0]
+    ptr, contacts, wval, woff, cval, coff = [0], [], [], [0], [], [0]
     for g in range(len(chosen)):
         dofs = np.arange(c.start[g], c.start[g + 1])
         rows = np.flatnonzero(np.any(H[dofs][:, 0::2] != 0.0, axis=0)) if chosen[g] else np.zeros(0, int)
         Hg = H[dofs][:, 2 * rows]
-        wval.append((Hg.T @ C[np.ix_(dofs, dofs)] @ Hg).ravel())
+        wval.append((Hg.T @ C[np.ix_(dofs, dofs)] @ Hg)[np.triu_indices(rows.size)])
+        block = np.zeros((0, 0)) if chosen[g] else C[np.ix_(dofs, dofs)]
+        cval.append(block[np.triu_indices(len(block))])
         contacts.extend(rows)
         ptr.append(len(contacts))
-        woff.append(woff[-1] + rows.size**2)
+        woff.append(woff[-1] + wval[-1].size)
+        coff.append(coff[-1] + cval[-1].size)
     return (np.asarray(chosen, bool), np.array(ptr), np.array(contacts, np.int64), np.array(woff),
-            np.concatenate(wval))
+            np.concatenate(wval), np.array(coff), np.concatenate(cval))
 
 
 def _dofs_of(p, c, g):
