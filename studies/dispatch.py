@@ -210,16 +210,27 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
     return {"status": status, "wall_time": wall, "peak_mib": peak, "resumed": resumed, "message": message}
 
 
+# Dask's own monitoring, slowed for the local cluster: its runs are long child processes that the
+# workers only start and wait for, while by default every worker samples its threads for the
+# profiler, checks its event loop, its memory and the system many times a second. On a machine
+# with one core per run that monitoring is taken from the runs
+# (benchmarks/results/dispatch_overhead.md).
+QUIET = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.monitor-interval": "1s",
+         "distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "5s"}
+
+
 def local_cluster(n_workers: int = 2, threads_per_worker: int = 1):
-    """The default cluster: worker processes with one thread each, no dashboard.
+    """The default cluster: worker processes with one thread each, no dashboard, Dask's monitoring
+    slowed (:data:`QUIET`).
 
     (The scheduler's small HTTP server still binds a port: 8787, or any free one when 8787 is taken
     by another cluster, which distributed warns about; that warning is silenced here.)"""
     import warnings
 
+    import dask
     from dask.distributed import LocalCluster
 
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), dask.config.set(QUIET):
         warnings.filterwarnings("ignore", message="Port .* is already in use")
         return LocalCluster(n_workers=n_workers, threads_per_worker=threads_per_worker, processes=True,
                             dashboard_address=None)

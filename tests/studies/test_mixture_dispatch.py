@@ -71,3 +71,18 @@ def test_run_times_sum_the_dispatches_of_a_run(tmp_path):
         {"name": "b", "status": "skipped", "wall_time": 0.0}, {"name": "b", "status": "failed", "wall_time": 2.0}]))
     assert run_times(log) == {"a": 15.0, "b": 2.0}
     assert run_times(tmp_path / "none.jsonl") == {}
+
+
+def test_local_cluster_workers_run_with_dask_monitoring_slowed():
+    """The workers of studies.dispatch.local_cluster carry QUIET (no profiler sampling their
+    threads, slow monitors), and the caller's Dask configuration is left as it was."""
+    import dask
+    from dask.distributed import Client
+
+    from studies.dispatch import QUIET, local_cluster
+
+    before = {key: dask.config.get(key) for key in QUIET}
+    with local_cluster(2) as cluster, Client(cluster) as client:
+        seen = client.run(lambda: {key: dask.config.get(key) for key in QUIET})
+    assert len(seen) == 2 and all(config == QUIET for config in seen.values())
+    assert {key: dask.config.get(key) for key in QUIET} == before != QUIET
