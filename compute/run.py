@@ -12,10 +12,12 @@ that passes, and always ran at least 2 check_every steps; a shorter check_every 
 creep (φ may drift by phi_tolerance per window). The sliding window ends stages earlier at the
 same distance from a ten times tighter test (benchmarks/results/stage_window_144.md).
 
-A run asked to stop (SIGTERM) stops at the end of the step it is computing: it writes a
-checkpoint, then dies by that signal, as a killed run (nothing marked, studies.dispatch resumes
-it), having lost nothing. A second SIGTERM kills it at once. Why: a step of a large soft mixture
-at high pressure takes minutes, and a machine given back at a fixed time should lose none of them.
+A run asked to stop (SIGTERM, or a file OUT/STOP, read after every step) stops at the end of the
+step it is computing: it writes a checkpoint, then dies by SIGTERM, as a killed run (nothing
+marked, studies.dispatch resumes it), having lost nothing. A second SIGTERM kills it at once.
+Why: a step of a large soft mixture at high pressure takes minutes, and a machine given back at
+a fixed time should lose none of them; the file is how a study's dispatcher, which does not know
+the processes its workers started, asks its runs to stop.
 """
 
 from __future__ import annotations
@@ -38,6 +40,8 @@ from compute.threads import ThreadsFile
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.model import Model
 from compute.progress import Display, RunProgress
+
+STOP_FILE = "STOP"  # OUT/STOP asks the run to stop after its step (module docstring)
 from compute.scene import read_scene
 from compute.state import State
 from compute.stepping import load_control
@@ -66,7 +70,7 @@ class Run:
         self.scene = read_scene(scene_dir, bodies_outside)  # a bad scene stops before anything is written
         self.checkpoint_seconds = None if checkpoint_minutes is None else 60.0 * checkpoint_minutes
         self._last_checkpoint = time.monotonic()
-        self._stop_asked = False
+        self._stop_asked: str | None = None  # what asked the run to stop
         self.out = Path(out_dir)
         self.log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
         self.model = build_model(self.scene)
@@ -201,7 +205,7 @@ class Run:
 
     def _ask_stop(self, signum, frame) -> None:
         """SIGTERM handler: stop after this step (module docstring); the next SIGTERM kills."""
-        self._stop_asked = True
+        self._stop_asked = "SIGTERM"
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
     def _pressure_stage(self, pressure: float) -> str | None:
@@ -288,12 +292,18 @@ class Run:
         step-counted checkpoints would lose hours. It is not the default because a checkpoint is
         a restart point (Stepper.restart_point): the steps after it, and so the trajectory, then
         depend on when the checkpoints fell."""
+        stop_file = self.out / STOP_FILE
+        if not self._stop_asked and stop_file.is_file():
+            self._stop_asked = "OUT/STOP"
         due = self.checkpoint_seconds is not None and time.monotonic() - self._last_checkpoint >= self.checkpoint_seconds
         if due or self._stop_asked or self.state.step % self.scene.output.checkpoint_every_steps == 0:
             self.checkpoint()
         if self._stop_asked:
-            self.log(f"stopped by SIGTERM after step {self.state.step}, checkpoint written; resume to go on")
-            os.kill(os.getpid(), signal.SIGTERM)  # the handler is gone: the process dies by SIGTERM
+            stop_file.unlink(missing_ok=True)  # honoured: a resume goes on
+            self.log(f"stopped by {self._stop_asked} after step {self.state.step}, checkpoint written; resume to go on")
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)  # no handler left: the process dies by SIGTERM
 
     def _inertial(self, pressure: float) -> float:
         m = self.model

@@ -41,13 +41,23 @@ study does not carry over) and removes it when the run ends. The hosts are told 
 workers' addresses, and a run's host by the scheduler's ``processing`` (a round trip every
 ``POLL`` s once the queue is empty): a run is never handed another machine's cores.
 
+Stopping a study
+----------------
+SIGINT (Ctrl-C) or SIGTERM to the dispatching process starts no further run and asks each
+running run to stop after its step by a file ``OUT/STOP`` (compute.run: it checkpoints and dies
+by SIGTERM, ``killed`` below, resumed by the next dispatch); the dispatcher records their
+outcomes, then returns. A second signal ends the dispatcher at once: its runs then die with their
+workers, losing the steps since their last checkpoint. Why a file: the runs are processes started
+by the workers, possibly on other machines, which the dispatcher only sees through their folders.
+
 Statuses (:class:`RunResult.status`): ``complete`` (the child wrote OUT/COMPLETE), ``incomplete``
 (the child finished the loading program but wrote OUT/INCOMPLETE: some stage not equilibrated or
 some contact solve above its tolerance, :mod:`compute.summary`), ``skipped`` (OUT/COMPLETE or
 OUT/INCOMPLETE was already there: the run is finished), ``failed`` (OUT/FAILED holds the diagnosis: a numerical failure
 or a file it could not write, written by compute, or a scene error / exception written here with the log's tail), ``killed``
 (the child died by a signal: nothing is marked, the next dispatch resumes it), ``lost`` (the
-Dask task itself failed, e.g. its worker died repeatedly). A run that fails never stops the
+Dask task itself failed, e.g. its worker died repeatedly), ``not started`` (the study was asked to
+stop before its turn). A run that fails never stops the
 others. Runs with OUT/FAILED are skipped by later dispatches unless ``retry_failed``.
 
 Every outcome is appended, as one JSON object per line, to ``log_file`` when given (the study's
@@ -298,33 +308,45 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                     while queue and len(running) < slots:
                         spec = queue.pop(0)
                         _write_threads(spec.out, threads)  # not a share left by a killed study
+                        _remove_stop(spec.out)  # nor a stop asked of it then
                         shares[spec] = threads
                         future = client.submit(execute_run, str(spec.scene), str(spec.out), threads, retry_failed,
                                                checkpoint_minutes, key=f"run-{spec.name}-{time.time_ns()}", pure=False)
                         running[future] = spec
 
                 fill()
-                while running:
-                    try:
-                        wait(list(running), timeout=POLL, return_when="FIRST_COMPLETED")
-                    except TimeoutError:
-                        pass
-                    for future in [f for f in running if f.done()]:
-                        spec = running.pop(future)
-                        shares.pop(spec, None)
-                        _remove_threads(spec.out)
+                stopping = False
+                with _StopRequest() as stop:
+                    while running:
+                        if stop.asked and not stopping:  # no new run; the running ones asked to stop
+                            stopping = True
+                            say(f"stopping: {len(queue)} run(s) not started; asking "
+                                + ", ".join(spec.name for spec in running.values()) + " to stop after their step")
+                            for spec in queue:
+                                record(RunResult(spec.name, "not started", message="the study was asked to stop"))
+                            queue.clear()
+                            for spec in running.values():
+                                _ask_stop(spec.out)
                         try:
-                            record(RunResult(spec.name, **future.result()))
-                        except Exception as exc:  # the task itself died (worker lost, ...)
-                            record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
-                    fill()
-                    if not queue and running:
-                        try:
-                            _hand_out_cores(client, running, threads, shares, say)
-                        except Exception as exc:  # a core not handed out costs time, never the study
-                            say(f"warning: freed cores not handed out: {type(exc).__name__}: {exc}")
-                    if shown is not None:
-                        _show_progress(shown, len(todo) - len(queue) - len(running), list(running.values()))
+                            wait(list(running), timeout=POLL, return_when="FIRST_COMPLETED")
+                        except TimeoutError:
+                            pass
+                        for future in [f for f in running if f.done()]:
+                            spec = running.pop(future)
+                            shares.pop(spec, None)
+                            _remove_threads(spec.out)
+                            try:
+                                record(RunResult(spec.name, **future.result()))
+                            except Exception as exc:  # the task itself died (worker lost, ...)
+                                record(RunResult(spec.name, "lost", message=f"{type(exc).__name__}: {exc}"))
+                        fill()
+                        if not queue and running:
+                            try:
+                                _hand_out_cores(client, running, threads, shares, say)
+                            except Exception as exc:  # a core not handed out costs time, never the study
+                                say(f"warning: freed cores not handed out: {type(exc).__name__}: {exc}")
+                        if shown is not None:
+                            _show_progress(shown, len(todo) - len(queue) - len(running), list(running.values()))
                 if shown is not None:
                     shown.mark(f"{len(todo)}/{len(todo)} runs ended")
                     shown.close()
@@ -340,6 +362,54 @@ def _write_threads(out: Path, n: int) -> None:
 
     Path(out).mkdir(parents=True, exist_ok=True)
     files.write_text(Path(out) / THREADS_FILE, f"{int(n)}\n")
+
+
+class _StopRequest:
+    """While in the block, a SIGINT or SIGTERM sets ``asked`` instead of stopping the process, and
+    gives both signals back their default handlers, so that a second one stops it at once (module
+    docstring, "Stopping a study"). Off the main thread (where signal handlers cannot be set) it
+    does nothing."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.asked, self._previous = False, {}
+
+    def __enter__(self):
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {sig: signal.signal(sig, self._ask) for sig in self.SIGNALS}
+        return self
+
+    def _ask(self, signum, frame) -> None:
+        self.asked = True
+        for sig in self.SIGNALS:
+            signal.signal(sig, signal.SIG_DFL if sig == signal.SIGTERM else signal.default_int_handler)
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+
+def _ask_stop(out: Path) -> None:
+    """Ask the run writing ``out`` to stop after its step (compute.run.STOP_FILE)."""
+    from compute import files
+    from compute.run import STOP_FILE
+
+    try:
+        files.write_text(Path(out) / STOP_FILE, "asked by the study's dispatcher\n")
+    except Exception:  # a run that cannot be asked goes on; a second signal still stops the study
+        pass
+
+
+def _remove_stop(out: Path) -> None:
+    from compute.run import STOP_FILE
+
+    try:
+        (Path(out) / STOP_FILE).unlink(missing_ok=True)
+    except OSError:
+        pass
 
 
 def _remove_threads(out: Path) -> None:

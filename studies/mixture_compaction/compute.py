@@ -3,7 +3,9 @@ DIR/runs/<name>/out, dispatched with Dask distributed (studies.dispatch): a loca
 --workers processes with one thread each by default, or the scheduler at --scheduler ADDRESS.
 
 Runs whose OUT/COMPLETE exists are skipped; runs killed midway resume from their checkpoint; a run
-that fails (OUT/FAILED) does not stop the others and is not retried unless --retry-failed. Every
+that fails (OUT/FAILED) does not stop the others and is not retried unless --retry-failed. Ctrl-C
+or SIGTERM stops the study without losing a step: no further run starts, the running ones stop
+after their step with a checkpoint (a second signal stops at once). Every
 outcome is appended to DIR/dispatch.jsonl (one JSON object per line: time, name, status,
 wall_time, resumed, message). Exit status 0 when every run is complete, 1 otherwise.
 """

@@ -86,3 +86,39 @@ def test_local_cluster_workers_run_with_dask_monitoring_slowed():
         seen = client.run(lambda: {key: dask.config.get(key) for key in QUIET})
     assert len(seen) == 2 and all(config == QUIET for config in seen.values())
     assert {key: dask.config.get(key) for key in QUIET} == before != QUIET
+
+
+def test_a_signal_stops_the_study_after_the_running_runs_step(tmp_path):
+    """SIGTERM to the dispatching process: the queued run is not started; the running one is asked
+    by OUT/STOP to stop after its step, checkpoints and dies by SIGTERM, recorded as killed with
+    its wall time; the STOP file is gone, so that the next dispatch resumes it."""
+    import os
+    import signal
+    import threading
+    import time
+
+    from pre.scene import default_parameters, write_scene
+
+    xy = np.stack(np.meshgrid(np.arange(3) + 0.5, np.arange(3) + 0.5), -1).reshape(-1, 2)
+    params = default_parameters((0.0, 3.0, 0.0, 3.0), 0.3, 1.0, [1.0])
+    params["loading"].update(phi_tolerance=1e-300, inertial_tolerance=1e-300, max_steps_per_stage=10**7)
+    endless = write_scene(tmp_path / "endless" / "scene", params, xy, np.full(9, 0.5), ["rigid"] * 9)
+    queued = lattice_scene(tmp_path / "queued" / "scene")
+    out = tmp_path / "endless" / "out"
+    runs = [RunSpec("endless", endless, out), RunSpec("queued", queued, tmp_path / "queued" / "out")]
+
+    def signal_once_stepping():
+        deadline = time.monotonic() + 300
+        while not (out / "progress.json").is_file() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=signal_once_stepping, daemon=True).start()
+    log = tmp_path / "dispatch.jsonl"
+    results = dispatch(runs, n_workers=1, log=None, log_file=log, progress=False)
+    assert [(r.name, r.status) for r in results] == [("endless", "killed"), ("queued", "not started")]
+    assert results[0].wall_time > 0 and run_times(log)["endless"] == pytest.approx(results[0].wall_time)
+    assert not (tmp_path / "queued" / "out").exists()
+    assert (out / "checkpoint").is_dir() and not (out / "STOP").exists()
+    assert "stopped by OUT/STOP after step" in (out / "compute.log").read_text()
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL  # the dispatcher gave it back
