@@ -303,12 +303,15 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
 
                 shares: dict[RunSpec, int] = {}  # threads last written to each running run's OUT/threads
 
+                from compute.run import STOP_FILE
+                from compute.threads import THREADS_FILE
+
                 def fill() -> None:
                     slots = max(1, sum(client.nthreads().values()))
                     while queue and len(running) < slots:
                         spec = queue.pop(0)
                         _write_threads(spec.out, threads)  # not a share left by a killed study
-                        _remove_stop(spec.out)  # nor a stop asked of it then
+                        _remove(spec.out, STOP_FILE)  # nor a stop asked of it then
                         shares[spec] = threads
                         future = client.submit(execute_run, str(spec.scene), str(spec.out), threads, retry_failed,
                                                checkpoint_minutes, key=f"run-{spec.name}-{time.time_ns()}", pure=False)
@@ -334,7 +337,7 @@ def dispatch(runs: Iterable[RunSpec], scheduler: str | None = None, n_workers: i
                         for future in [f for f in running if f.done()]:
                             spec = running.pop(future)
                             shares.pop(spec, None)
-                            _remove_threads(spec.out)
+                            _remove(spec.out, THREADS_FILE)
                             try:
                                 record(RunResult(spec.name, **future.result()))
                             except Exception as exc:  # the task itself died (worker lost, ...)
@@ -403,20 +406,10 @@ def _ask_stop(out: Path) -> None:
         pass
 
 
-def _remove_stop(out: Path) -> None:
-    from compute.run import STOP_FILE
-
+def _remove(out: Path, name: str) -> None:
+    """Remove the file ``name`` of a run's folder if it is there (best effort)."""
     try:
-        (Path(out) / STOP_FILE).unlink(missing_ok=True)
-    except OSError:
-        pass
-
-
-def _remove_threads(out: Path) -> None:
-    from compute.threads import THREADS_FILE
-
-    try:
-        (Path(out) / THREADS_FILE).unlink(missing_ok=True)
+        (Path(out) / name).unlink(missing_ok=True)
     except OSError:
         pass
 
