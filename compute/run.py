@@ -38,6 +38,7 @@ import numpy as np
 from compute import files, output, output_folder, schema, stall, summary, wall_crossing
 from compute.threads import ThreadsFile
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
+from compute.bodies.soft import mass_scale
 from compute.model import Model
 from compute.progress import Display, RunProgress
 
@@ -213,6 +214,10 @@ class Run:
         there), else None."""
         load = self.scene.loading
         previous = load.pressures[self.state.stage - 1] if self.state.stage else 0.0
+        solver = self.scene.solver
+        for group in self.model.soft:  # the stage's inertia (compute.bodies.soft, mass scaling)
+            group.scale_mass(mass_scale(solver.mass_scaling, pressure, solver.time_step,
+                                        group.batch.material.density, self.model.diameter))
         while True:
             self.state, rep, applied, halvings = load_control.controlled_step(self.stepper, self.state, previous,
                                                                               pressure, self.log)

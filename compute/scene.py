@@ -84,6 +84,7 @@ class Solver:
     contact: str  # contact solver: "auto", "nlgs", "block", "nlgs_block", "interior_point", "nlgs_ip", "cone_point", "mprgp" (compute.solvers.for_scene)
     rigid_soft_rows: str  # "nodes" or "nodes_and_segments" (compute.contact.soft_rows, segment-disk)
     hold_rotation: bool  # soft bodies' angular momentum about their centroid held at zero (compute.bodies.soft)
+    mass_scaling: float  # c of the soft bodies' inertia factor max(1, c P h² / (ρ <d>²)) in a stage (compute.bodies.soft)
     step: str  # step strategy: "auto", "fixed_point", "active_set" (compute.stepping.strategies)
 
 

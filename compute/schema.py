@@ -180,6 +180,10 @@ SOLVER = (
     Key("hold_rotation", "bool", "hold each soft body's angular momentum about its centroid at zero (a torque "
         "multiplier): removes the rigid rotation that frictionless contacts leave free and that pressure makes "
         "unstable (compute/bodies/soft.py); not for scenes where soft bodies should turn", default=False),
+    Key("mass_scaling", "float", "soft bodies' inertia in a pressure stage P: max(1, mass_scaling · P h² / (ρ ⟨d⟩²)) "
+        "times their material's (0: none); keeps their Newton matrices positive definite where pressure makes their "
+        "tangent indefinite; equilibria do not depend on it, the path between them does (compute/bodies/soft.py)",
+        low=0.0, high=1e6, default=0.0),
     Key("step", "str", "step strategy (compute/stepping/strategies.py): fixed_point, the Newton loop around a "
         "complete contact solve, for any scene; active_set, a semismooth Newton with the contact conditions "
         "inside the iteration, for one soft body with hold_rotation, no friction and no movable rigid disk; auto: "

@@ -32,6 +32,17 @@ factorisation are not recomputed in the following iterations of the step (a chor
 them; the free velocity of the last evaluation stays valid to first order in their remaining
 correction).
 
+Mass scaling (the scene's ``solver.mass_scaling`` c, :func:`mass_scale`): in a pressure stage P
+the bodies' inertia is s = max(1, c P h² / (ρ ⟨d⟩²)) times their material's, gravity's weight
+left as it is. Why: pressure makes K_t indefinite, and at a large h the inertia M / (hθ)² no
+longer covers it. Along a pressed disk's linearised rotation, for one, the internal work falls
+by 2 p A ω² against the kinetic ρ A r² ω² / (2 h²) (θ = 1): M̂ stays positive definite only while
+ρ > 16 p h² / d². Where it is not, the Newton iteration falls back to a stabilised matrix,
+converges linearly and the steps are cut. Static equilibria do not depend on the mass, and the
+stages end on equilibria: the scaling changes the path between them (the stage ends it moves
+and what it saves: benchmarks/results/mass_scaling.md). The scale is set when a stage starts
+(compute.run), from the stage's pressure, so a resumed run sets the same.
+
 The centre of a body (branch vectors, frames) is its current centroid; its area the exact
 current area of its elements.
 """
@@ -77,6 +88,14 @@ class SoftBodies:
     def __len__(self) -> int:
         return self.B
 
+    def scale_mass(self, factor: float) -> None:
+        """Inertia ``factor`` times the material's (:func:`mass_scale`); the Newton matrices
+        kept so far are dropped when it changes (they start again from the exact M̂)."""
+        if factor != self.batch.mass_scale:
+            self.batch.scale_mass(factor)
+            if self.matrices is not None:
+                self.matrices.forget()
+
     def nodes(self, a: np.ndarray) -> np.ndarray:
         """(B, n_nodes, 2) view of this group's part of q or v."""
         return a[self.dofs].reshape(self.B, self.n_nodes, 2)
@@ -93,7 +112,8 @@ class SoftBodies:
             self.matrices = NewtonMatrices(self.batch)
         g = tuple(load.gravity)
         if self._gravity is None or self._gravity[0] != g:  # M g, kept while gravity does not change
-            self._gravity = (g, self.batch.mass_times(np.tile(np.asarray(g, float), (self.B, self.n_nodes))))
+            self._gravity = (g, self.batch.mass_times(np.tile(np.asarray(g, float), (self.B, self.n_nodes)),
+                                                      material=True))
         x_n = self.nodes(q).copy()
         v_n = v[self.dofs].reshape(self.B, -1).copy()
         if self.hold_rotation:
@@ -339,6 +359,13 @@ class SoftBodies:
         return (f"body {int(self.ids[b])}: {els.size} inverted element(s) at {where} "
                 f"{els[:10].tolist()}{' ...' if els.size > 10 else ''} (Newton iteration {step.iteration}, "
                 f"h = {step.h:.4g})")
+
+
+def mass_scale(coefficient: float, pressure: float, h: float, density: float, diameter: float) -> float:
+    """Inertia factor s = max(1, c P h² / (ρ ⟨d⟩²)) of soft bodies of ``density`` in a stage at
+    ``pressure`` with time step ``h`` and mean diameter ``diameter`` (module docstring); 1 for
+    ``coefficient`` c = 0."""
+    return max(1.0, coefficient * pressure * h * h / (density * diameter * diameter))
 
 
 def _block_diagonals(start: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -117,7 +117,7 @@ class NewtonMatrices:
                     values = data.copy()
                 values[trying] = data[trying] - g[trying]
                 if level > 1:
-                    shift = self.SHIFTS[level - 2] * (h * theta) ** 2 * self._unit
+                    shift = self.SHIFTS[level - 2] * (h * theta) ** 2 * self._unit / self.batch.mass_scale  # of M unscaled
                     values[trying] += shift[trying, None] * self.batch.mass_data[trying]
             negative = self.symbolic.factorize(values, trying, self.lx, self.d)
             self.factorizations += int(trying.sum())

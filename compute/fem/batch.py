@@ -206,7 +206,7 @@ class BodyBatch:
     (NeoHookean), volumetric, indptr (n_dof + 1,), indices (nnz,) the shared CSR pattern of
     every body matrix (the pattern of FEBody: every dof pair of every element; read-only),
     kmap (n_elem, 2 n_en, 2 n_en) as in body.py, mass_data (B, nnz) consistent mass matrices in
-    that pattern, reference_areas (B, n_elem), boundary (n_b,) the CCW boundary loop (shared),
+    that pattern (the material's times ``mass_scale``, :meth:`scale_mass`), reference_areas (B, n_elem), boundary (n_b,) the CCW boundary loop (shared),
     X (B, n_nodes, 2).
     Raises ValueError (naming the body index) for an invalid mesh, as FEBody does.
 
@@ -252,6 +252,7 @@ class BodyBatch:
         for i in range(2):
             np.add.at(mass, self.kmap[:, i::2, i::2], m_e.transpose(1, 2, 3, 0))
         self.mass_data = np.ascontiguousarray(mass.T)
+        self.mass_scale, self._material_mass = 1.0, None
 
     # ---------------------------------------------------------------------- argument checks
 
@@ -327,9 +328,21 @@ class BodyBatch:
         self._output(kdata, (self.B, self.indices.size), "kdata")
         _batch_axpy(self.mass_data, c, kdata, self._active(active))
 
-    def mass_times(self, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def scale_mass(self, factor: float) -> None:
+        """Make the mass matrices ``factor`` times the material's (mass scaling:
+        compute.bodies.soft.mass_scale), always from the material's, so that the same factor
+        gives the same matrices bit for bit whatever was set before."""
+        if factor == self.mass_scale:
+            return
+        if self._material_mass is None:
+            self._material_mass = self.mass_data.copy()
+        np.multiply(self._material_mass, factor, out=self.mass_data)
+        self.mass_scale = float(factor)
+
+    def mass_times(self, v: np.ndarray, out: np.ndarray | None = None, material: bool = False) -> np.ndarray:
         """M_b v_b for v (B, 2n) -> (B, 2n) (batched CSR mat-vec on the shared pattern), written
-        to ``out`` (B, 2n) if given (must not be v)."""
+        to ``out`` (B, 2n) if given (must not be v); with ``material``, M_b the material's mass
+        whatever the scaling (weights)."""
         v = np.ascontiguousarray(v, dtype=np.float64)
         if v.shape != (self.B, self.n_dof):
             raise ValueError(f"v must have shape ({self.B}, {self.n_dof}), got {v.shape}")
@@ -339,7 +352,8 @@ class BodyBatch:
             self._output(out, (self.B, self.n_dof), "out")
             if np.shares_memory(out, v):
                 raise ValueError("mass_times: out must not overlap v")
-        _batch_csr_matvec(self.indptr, self.indices, self.mass_data, v, out)
+        mass = self._material_mass if material and self._material_mass is not None else self.mass_data
+        _batch_csr_matvec(self.indptr, self.indices, mass, v, out)
         return out
 
     # ---------------------------------------------------------------------- diagnostics

@@ -1,7 +1,8 @@
 """A run killed (SIGKILL) at any moment and resumed with --resume ends bitwise identical to the
 uninterrupted run: history, frame list, every frame file and the final state. One soft-body scene
-(whose steps reuse factorisations) and one rigid scene, each killed at three moments: before the
-first checkpoint, right after a checkpoint, and mid-way between two checkpoints."""
+(whose steps reuse factorisations), the same with its inertia scaled per stage, and one rigid
+scene, each killed at three moments: before the first checkpoint, right after a checkpoint, and
+mid-way between two checkpoints."""
 
 import subprocess
 import sys
@@ -44,11 +45,22 @@ def _soft_scene(folder: Path) -> Path:
     return folder
 
 
+def _mass_scaled_scene(folder: Path) -> Path:
+    """The soft scene with its inertia scaled in every stage (solver.mass_scaling 50: 1.25, 12.5,
+    37.5 times the material's), which a resumed run must set again from its stage."""
+    _soft_scene(folder)
+    toml = folder / "scene.toml"
+    text = toml.read_text()
+    assert "mass_scaling = 0.0" in text
+    toml.write_text(text.replace("mass_scaling = 0.0", "mass_scaling = 50.0"))
+    return folder
+
+
 def _rigid_scene(folder: Path) -> Path:
     return rigid_scene(folder)
 
 
-SCENES = {"soft": (_soft_scene, 4), "rigid": (_rigid_scene, 25)}
+SCENES = {"soft": (_soft_scene, 4), "soft, mass-scaled": (_mass_scaled_scene, 4), "rigid": (_rigid_scene, 25)}
 
 
 def _compute(scene: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:

@@ -255,3 +255,21 @@ def _force_and_tangent_values(body, x):
     """f_int (2n,) and the values (nnz,) of K_t in the body's CSR pattern."""
     f, k = body.internal_force_and_tangent(x)
     return f, k.data
+
+
+def test_mass_scaling_is_the_materials_mass_times_the_factor():
+    """BodyBatch.scale_mass: the mass matrices are the material's times the factor, set from the
+    material's each time (bit for bit the same whatever factor came before, 1 gives them back);
+    mass_times(material=True) keeps the material's mass (weights)."""
+    X, cells = disk_mesh(2)
+    batch = BodyBatch(np.stack([X, X + 3.0]), cells, "T3", NeoHookean(1.0, 0.3, 2.0), "standard")
+    material = batch.mass_data.copy()
+    v = np.random.default_rng(3).normal(size=(2, batch.n_dof))
+    batch.scale_mass(7.0)
+    direct = batch.mass_data.copy()
+    np.testing.assert_allclose(batch.mass_times(v), 7.0 * batch.mass_times(v, material=True), rtol=1e-13)
+    batch.scale_mass(3.0)
+    batch.scale_mass(7.0)
+    assert np.array_equal(batch.mass_data, direct)
+    batch.scale_mass(1.0)
+    assert np.array_equal(batch.mass_data, material) and batch.mass_scale == 1.0
