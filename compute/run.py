@@ -41,14 +41,14 @@ from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.bodies.soft import mass_scale
 from compute.model import Model
 from compute.progress import Display, RunProgress
-
-STOP_FILE = "STOP"  # OUT/STOP asks the run to stop after its step (module docstring)
 from compute.scene import read_scene
 from compute.state import State
 from compute.stepping import load_control
 from compute.stepping.moreau_jean import Stepper
 from compute.frames import wall_forces
 from compute.bodies.walls import inertial_number, wall_lengths
+
+STOP_FILE = "STOP"  # OUT/STOP asks the run to stop after its step (module docstring)
 
 # φ above 1 with a soft boundary beyond the walls stops the run (compute.wall_crossing)
 PHI_LIMIT = 1.0 + 1e-9
