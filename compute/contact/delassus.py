@@ -248,19 +248,15 @@ def normal_groups(dof, hn, block, start, offset, values):
                     o = offset[g] + (d - s0) * s  # row d of the symmetric block: its column d
                     for i in range(s):
                         y[i, j] += hn[c, a] * values[o + i]
-        w = np.zeros((k, k))
+        row = woff[g]  # where row i of the packed triangle starts (entries j = i .. k - 1)
         for i in range(k):
             c = contacts[ptr[g] + i]
             for a in range(m):
                 d = dof[c, a]
                 if d >= 0 and block[d] == g:
                     for j in range(i, k):
-                        w[i, j] += hn[c, a] * y[d - s0, j]
-        q = woff[g]
-        for i in range(k):
-            for j in range(i, k):
-                wval[q] = w[i, j]
-                q += 1
+                        wval[row + j - i] += hn[c, a] * y[d - s0, j]
+            row += k - i
     return dense, ptr, contacts, woff, wval, coff, cval
 
 
