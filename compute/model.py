@@ -129,6 +129,12 @@ class Model:
     def particle_area(self, q: np.ndarray) -> float:
         return self.rigid.area(q) + sum(g.area(q) for g in self.soft)
 
+    def particle_mass(self) -> float:
+        """Mass of the particles: rigid disks', and soft bodies' reference mass times their
+        stage's mass scale (the inertia a stage moves)."""
+        soft = sum(g.batch.material.density * g.batch.reference_areas.sum() * g.batch.mass_scale for g in self.soft)
+        return float(self.rigid.mass.sum() + soft)
+
     def phi(self, q: np.ndarray) -> float:
         """Packing fraction φ = V_p / V with current particle areas."""
         b = self.bounds(q)

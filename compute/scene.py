@@ -47,6 +47,7 @@ class Walls:
     mass: float
     control: str
     damping_inertial_number: float
+    damping_ratio: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -193,7 +194,7 @@ def parse_parameters(file, data: dict) -> dict:
     bounds = tuple(w[k] for k in WALL_NAMES)
     if not (bounds[0] < bounds[1] and bounds[2] < bounds[3]):
         raise SceneError(file, "walls.xmin/xmax/ymin/ymax", "xmin < xmax and ymin < ymax", bounds)
-    walls = Walls(bounds, w["mass"], w["control"], w["damping_inertial_number"])
+    walls = Walls(bounds, w["mass"], w["control"], w["damping_inertial_number"], w["damping_ratio"])
     ld = schema.validate(file, "loading.", data.get("loading"), schema.LOADING, context={"control": walls.control})
     if walls.control == "pressure" and not ld["pressures"]:
         raise SceneError(file, "loading.pressures", "a non-empty list of positive numbers", ld["pressures"])

@@ -9,6 +9,16 @@ force -c ṡ_w with c chosen so that a free wall would reach the terminal speed 
 target inertial number I* = ε̇ ⟨d⟩ √(ρ/P):  c = P L_w / (I* L_w √(P/ρ) / ⟨d⟩). The force
 vanishes at rest, so it changes no equilibrium. Integrated with the θ-scheme:
 (m + θ h c)(v⁺ - v⁻) = h (F - c v⁻) + r.
+
+That coefficient does not grow with the packing, whose breathing mode does: with the walls
+moving in by δ and the particles' velocity growing linearly from the centre, the mode has per
+wall the mass m_w + M/6 (M the particles' mass) and the stiffness 4K (K the packing's bulk
+modulus, ΔP = K ΔA/A), so its critical damping is 2 √(4 K (m_w + M/6)), and a large packing rings
+for hundreds of steps after every pressure step. A stage's coefficient is therefore at least ζ
+times that critical damping (``damping_ratio`` ζ, :func:`breathing_damping`), with K the secant
+modulus between the last two equilibrated states (:func:`secant_bulk_modulus`): it lags the
+tangent modulus, which grows with P, so the mode is damped a little less than ζ says, never
+more.
 """
 
 from __future__ import annotations
@@ -25,7 +35,8 @@ class Walls:
     ymax); ``mass`` of each wall; ``control`` "pressure" | "velocity"; ``damping`` the target
     inertial number of the viscous damping (0: none); ``density``, ``diameter`` of the
     particles (for the damping's time scale). ``held`` (4,) bool: walls kept at rest whatever
-    the control (zero velocity and compliance)."""
+    the control (zero velocity and compliance). ``stage_damping`` the stage's least viscous
+    coefficient (:func:`breathing_damping`, set by the loading program; 0: none)."""
 
     kind = "wall"
     nonlinear = False
@@ -39,6 +50,7 @@ class Walls:
         self.dof0 = dof0
         self.dofs = slice(dof0, dof0 + 4)
         self.held = np.zeros(4, bool)
+        self.stage_damping = 0.0
 
     def __len__(self) -> int:
         return 4
@@ -59,7 +71,8 @@ class Walls:
         else:
             b, vw = self.bounds(q), v[self.dofs]
             force = pressure_forces(b, load.pressure)
-            c = damping_coefficients(b, load.pressure, self.damping, self.density, self.diameter)
+            c = np.maximum(damping_coefficients(b, load.pressure, self.damping, self.density, self.diameter),
+                           self.stage_damping)
             m_hat = self.mass + theta * h * c
             v_free = vw + h * (force - c * vw) / m_hat
             inverse = 1.0 / m_hat
@@ -90,6 +103,23 @@ def damping_coefficients(bounds: np.ndarray, pressure: float, inertial_number: f
     box = np.array([lengths[2], lengths[2], lengths[0], lengths[0]])  # size along the wall's axis
     speed = inertial_number * box * np.sqrt(pressure / density) / diameter
     return pressure * lengths / speed
+
+
+def secant_bulk_modulus(pressures, areas) -> float:
+    """Secant bulk modulus K = ΔP / ln(A_a / A_b) between the last two of the equilibrated
+    states (``pressures`` (n,), box ``areas`` (n,)); 0 with fewer than two, or when the box did
+    not shrink under a larger pressure (no elastic response to read)."""
+    if len(pressures) < 2:
+        return 0.0
+    dp, shrink = pressures[-1] - pressures[-2], np.log(areas[-2] / areas[-1])
+    return float(dp / shrink) if dp > 0.0 and shrink > 0.0 else 0.0
+
+
+def breathing_damping(ratio: float, modulus: float, particle_mass: float, wall_mass: float) -> float:
+    """Viscous coefficient ζ 2 √(4 K (m_w + M/6)) of each wall: ``ratio`` ζ times the critical
+    damping of the packing's breathing mode (module docstring) for bulk ``modulus`` K, particles'
+    mass M and wall mass m_w."""
+    return ratio * 2.0 * np.sqrt(4.0 * modulus * (wall_mass + particle_mass / 6.0))
 
 
 def inertial_number(bounds: np.ndarray, wall_velocity: np.ndarray, pressure: float, density: float,

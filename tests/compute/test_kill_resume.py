@@ -45,14 +45,16 @@ def _soft_scene(folder: Path) -> Path:
     return folder
 
 
-def _mass_scaled_scene(folder: Path) -> Path:
+def _stage_set_scene(folder: Path) -> Path:
     """The soft scene with its inertia scaled in every stage (solver.mass_scaling 50: 1.25, 12.5,
-    37.5 times the material's), which a resumed run must set again from its stage."""
+    37.5 times the material's) and its walls damped from the stage ends written so far
+    (walls.damping_ratio 1), which a resumed run must set again from its stage and frames."""
     _soft_scene(folder)
     toml = folder / "scene.toml"
     text = toml.read_text()
-    assert "mass_scaling = 0.0" in text
-    toml.write_text(text.replace("mass_scaling = 0.0", "mass_scaling = 50.0"))
+    assert "mass_scaling = 0.0" in text and "damping_ratio = 0.0" in text
+    toml.write_text(text.replace("mass_scaling = 0.0", "mass_scaling = 50.0").replace("damping_ratio = 0.0",
+                                                                                    "damping_ratio = 1.0"))
     return folder
 
 
@@ -60,7 +62,7 @@ def _rigid_scene(folder: Path) -> Path:
     return rigid_scene(folder)
 
 
-SCENES = {"soft": (_soft_scene, 4), "soft, mass-scaled": (_mass_scaled_scene, 4), "rigid": (_rigid_scene, 25)}
+SCENES = {"soft": (_soft_scene, 4), "soft, set per stage": (_stage_set_scene, 4), "rigid": (_rigid_scene, 25)}
 
 
 def _compute(scene: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
