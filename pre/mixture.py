@@ -43,10 +43,14 @@ RIGID, SOFT = "rigid", "soft"
 # moves the walls toward the next equilibrium much sooner than 1e-3, and a wall force balance
 # of 1e-2 avoids the slow creep of the box shape that kept a 1e-3 balance unmet (40-disk
 # mixtures, benchmarks/results/design_figures.md); a stage still ends only when I < 1e-4.
+# That damping does not grow with the box, and a large packing rings after each pressure step
+# for hundreds of steps: the walls are also damped at the critical damping of the packing's
+# breathing mode (damping ratio 1, compute.bodies.walls), which ends those stages in about half
+# the steps and nearer the slow-loading limit of φ (benchmarks/results/wall_damping.md).
 QUASI_STATIC = {
     "solver.time_step": 0.5, "solver.theta": 1.0, "solver.contact_tolerance": 1e-4, "solver.nlgs_max_sweeps": 2000,
     "solver.newton_tolerance": 1e-5, "solver.newton_max_iterations": 25,
-    "walls.damping_inertial_number": 1e-2,
+    "walls.damping_inertial_number": 1e-2, "walls.damping_ratio": 1.0,
     "loading.phi_tolerance": 1e-4, "loading.inertial_tolerance": 1e-4, "loading.force_tolerance": 1e-2,
     "loading.check_every": 20, "loading.max_steps_per_stage": 5000,
     "output.checkpoint_every_steps": 200,
