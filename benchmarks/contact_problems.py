@@ -13,6 +13,7 @@ recomputed from the returned impulses.
     python benchmarks/contact_problems.py export --scene studies/mixture_compaction/results/n1500_t3/rigid/mu0.2_s1/scene --step 1 --file P/rigid1500.npz
     python benchmarks/contact_problems.py compare P/*.npz --solvers nlgs block interior_point --tolerances 1e-6 1e-8
     python benchmarks/contact_problems.py compare P/rigid1500.npz --solvers interior_point --friction 0.05
+    python benchmarks/contact_problems.py compare P/mix1500.npz --solvers mprgp --tolerances 1e-4 --screening 0 0.1
 """
 
 from __future__ import annotations
@@ -112,14 +113,19 @@ def compare(a) -> None:
         if a.friction is not None:  # the same problem with another friction coefficient
             base.mu[base.mu > 0.0] = a.friction
         for name in a.solvers:
-            for tol in a.tolerances:
+            for tol, margin in ((t, m) for t in a.tolerances for m in a.screening):
                 p = copy.deepcopy(base)
                 solver = solver_of(name, tol, len(base.compliance.start) > 1, a.sweeps)
+                if margin > 0.0:
+                    from compute.solvers.screened import Screened
+
+                    solver = Screened(solver, margin)
                 solver.solve(copy.deepcopy(base))  # compile, warm caches
                 t = time.perf_counter()
                 rep = solver.solve(p)
                 seconds = time.perf_counter() - t
                 print(json.dumps({"problem": Path(path).stem, "contacts": meta["contacts"], "solver": name,
+                                  "screening": margin,
                                   "tolerance": tol, "iterations": rep.iterations, "seconds": round(seconds, 3),
                                   "error": float(f"{p.error(rep.v):.3g}"),
                                   "velocity_error": [float(f"{e:.3g}") for e in p.velocity_error(rep.v)]}), flush=True)
@@ -141,6 +147,8 @@ def main() -> None:
     c.add_argument("--friction", type=float, help="set every frictional contact's μ to this value")
     c.add_argument("--sweeps", type=int, default=200_000, help="sweep budget of the Gauss–Seidel solvers "
                    "(a scene's nlgs_max_sweeps; nlgs_ip hands over where NLGS would exceed it)")
+    c.add_argument("--screening", nargs="+", type=float, default=[0.0],
+                   help="solver.contact_screening margins to solve with (0: every row; compute.solvers.screened)")
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     export(a) if a.command == "export" else compare(a)

@@ -86,6 +86,7 @@ class Solver:
     rigid_soft_rows: str  # "nodes" or "nodes_and_segments" (compute.contact.soft_rows, segment-disk)
     hold_rotation: bool  # soft bodies' angular momentum about their centroid held at zero (compute.bodies.soft)
     mass_scaling: float  # c of the soft bodies' inertia factor max(1, c P h² / (ρ <d>²)) in a stage (compute.bodies.soft)
+    contact_screening: float  # margin of the contacts solved first, 0: all (compute.solvers.screened)
     step: str  # step strategy: "auto", "fixed_point", "active_set" (compute.stepping.strategies)
 
 

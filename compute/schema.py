@@ -187,6 +187,10 @@ SOLVER = (
         "times their material's (0: none); keeps their Newton matrices positive definite where pressure makes their "
         "tangent indefinite; equilibria do not depend on it, the path between them does (compute/bodies/soft.py)",
         low=0.0, high=1e6, default=0.0),
+    Key("contact_screening", "float", "solve each contact problem on the contacts that hold an impulse or "
+        "approach within this fraction of the fastest free approach, adding those left out that close, until "
+        "none does: the same solution from fewer rows (0: every row; compute/solvers/screened.py)",
+        low=0.0, high=1.0, default=0.0),
     Key("step", "str", "step strategy (compute/stepping/strategies.py): fixed_point, the Newton loop around a "
         "complete contact solve, for any scene; active_set, a semismooth Newton with the contact conditions "
         "inside the iteration, for one soft body with hold_rotation, no friction and no movable rigid disk; auto: "

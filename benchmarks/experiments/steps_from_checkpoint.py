@@ -53,6 +53,7 @@ def main() -> None:
     ap.add_argument("--label", default="")
     ap.add_argument("--contact", help="contact solver instead of the scene's (solver.contact)")
     ap.add_argument("--time-step", type=float, help="time step h instead of the scene's (solver.time_step)")
+    ap.add_argument("--screening", type=float, help="solver.contact_screening instead of the scene's")
     ap.add_argument("--json", type=Path, help="append the result line to this file")
     ap.add_argument("--solves", action="store_true", help="record every contact solve (sweeps, error, seconds)")
     a = ap.parse_args()
@@ -61,12 +62,15 @@ def main() -> None:
 
     commit = checkout.commit()
     with checkout.resumed(a.run) as run:
-        if a.contact:
+        if a.contact or a.screening is not None:
             from dataclasses import replace
 
             from compute import solvers
 
-            run.stepper.solver = solvers.for_model(replace(run.scene.solver, contact=a.contact), run.model)
+            settings = replace(run.scene.solver, contact=a.contact or run.scene.solver.contact,
+                               contact_screening=run.scene.solver.contact_screening if a.screening is None
+                               else a.screening)
+            run.stepper.solver = solvers.for_model(settings, run.model)
         if a.time_step:
             run.stepper.h = a.time_step
         solves: list = []
@@ -77,6 +81,7 @@ def main() -> None:
         previous = pressures[st.stage - 1] if st.stage else 0.0
         first = st.step
         result = {"label": a.label, "commit": commit, "contact": type(solver).__name__, "h": run.stepper.h,
+                  "screening": run.scene.solver.contact_screening if a.screening is None else a.screening,
                   "from_step": first, "stage": st.stage, "newton_iterations": 0, "cuts": 0, "load_halvings": 0,
                   "sweeps": 0, "phi": [], "step_seconds": [], "step_counts": [], "sub_steps": [], **({"solves": []} if a.solves else {})}
         t0 = time.perf_counter()

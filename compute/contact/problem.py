@@ -63,6 +63,12 @@ class ContactProblem:
     def __len__(self) -> int:
         return len(self.gap_term)
 
+    def restricted(self, rows: np.ndarray) -> "ContactProblem":
+        """The problem of the contacts ``rows`` (k,) alone, their impulses copied; it shares
+        ``compliance`` and ``v_free`` (:mod:`compute.solvers.screened`)."""
+        return ContactProblem(self.dof[rows], self.hn[rows], self.ht[rows], self.W[rows], self.compliance,
+                              self.v_free, self.gap_term[rows], self.mu[rows], self.impulse[rows], self.h_theta)
+
     def free_velocity(self) -> np.ndarray:
         """v_free on the packed dofs (n,): a solver's starting velocities."""
         return self.v_free[self.compliance.order]

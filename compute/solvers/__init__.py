@@ -52,6 +52,11 @@ solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:f
   benchmarks/results/design_figures.md, benchmarks/results/contact_problems.md,
   benchmarks/results/frictionless_qp.md.
 
+With ``solver.contact_screening`` > 0 the chosen solver is given only the contacts that can close
+(:class:`~compute.solvers.screened.Screened`): those holding an impulse or approaching within
+that fraction of the fastest free approach, and the ones left out that close at its solution,
+round after round; the solution is the whole problem's.
+
 All stop on the error of :mod:`compute.contact.residual` that the scene's
 ``solver.contact_error`` names (their ``measure``), with its optional penetration bound, and
 report it.
@@ -76,7 +81,19 @@ def for_model(settings, model):
 def for_scene(settings, n_soft: int, n_rigid: int, diameter: float = 1.0, frictionless: bool = False):
     """The contact solver of a scene's ``[solver]`` settings (module docstring), for a scene
     with ``n_soft`` soft bodies, ``n_rigid`` movable rigid disks and mean diameter ``diameter``
-    (the unit of ``penetration_bound``), ``frictionless`` if no pair of materials has friction."""
+    (the unit of ``penetration_bound``), ``frictionless`` if no pair of materials has friction;
+    with ``contact_screening`` > 0, solving on the contacts that can close
+    (:class:`compute.solvers.screened.Screened`)."""
+    solver = _chosen(settings, n_soft, n_rigid, diameter, frictionless)
+    if settings.contact_screening > 0.0:
+        from compute.solvers.screened import Screened
+
+        return Screened(solver, settings.contact_screening)
+    return solver
+
+
+def _chosen(settings, n_soft: int, n_rigid: int, diameter: float, frictionless: bool):
+    """The solver ``settings.contact`` names, or auto's choice (module docstring)."""
     from compute.solvers.block_gs import BlockGS
     from compute.solvers.cone_point import ConePoint
     from compute.solvers.interior_point import InteriorPoint

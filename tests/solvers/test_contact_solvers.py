@@ -11,6 +11,7 @@ from compute.solvers.interior_point import InteriorPoint
 from compute.solvers.mprgp import MPRGP
 from compute.solvers.nlgs import NLGS
 from compute.solvers.nlgs_then import NLGSThen
+from compute.solvers.screened import Screened
 from compute.contact.residual import Measure, natural_map_error
 from tests.solvers.lemke import frictional_lcp, lemke, solve_contact
 from tests.solvers.problems import bodies_problem, dense_form, random_problem
@@ -248,7 +249,7 @@ def test_auto_choice():
     from compute.solvers import for_scene
 
     settings = SimpleNamespace(contact="auto", contact_tolerance=1e-6, nlgs_max_sweeps=10, relaxation=1.0,
-                               contact_error="impulse", penetration_bound=0.0)
+                               contact_error="impulse", penetration_bound=0.0, contact_screening=0.0)
     assert isinstance(for_scene(settings, 1, 0), BlockGS)
     assert isinstance(for_scene(settings, 1, 3).fallbacks[0], BlockGS) and isinstance(for_scene(settings, 72, 72).fallbacks[0], BlockGS)
     assert isinstance(for_scene(settings, 2, 0).fallbacks[0], BlockGS)
@@ -262,6 +263,8 @@ def test_auto_choice():
     assert isinstance(for_scene(settings, 10, 20, frictionless=True).fallbacks[0], BlockGS)  # a small one
     assert isinstance(for_scene(settings, 1, 0, frictionless=True), BlockGS)  # one soft body alone
     assert isinstance(for_scene(settings, 0, 1500, frictionless=True), NLGS)  # rigid: as with friction
+    screened = for_scene(SimpleNamespace(**{**vars(settings), "contact_screening": 0.1}), 300, 1200, frictionless=True)
+    assert isinstance(screened, Screened) and isinstance(screened.inner, MPRGP) and screened.margin == 0.1
 
 
 def test_block_solver_with_redundant_contacts():
