@@ -203,3 +203,13 @@ def test_frictional_compaction_solves_contacts_to_the_looser_tolerance():
     for mu in (0.0, 0.2):
         forced = compaction_parameters(box, mu, [1e-3], {"solver.contact_tolerance": 1e-5})
         assert forced["solver"]["contact_tolerance"] == 1e-5
+
+
+def test_frictionless_compaction_screens_its_contacts():
+    """Frictionless compactions solve on the contacts that can close (pre.mixture.frictionless_screening),
+    frictional ones on every row; an explicit override wins."""
+    box = (0.0, 4.0, 0.0, 4.0)
+    assert compaction_parameters(box, 0.0, [1e-3])["solver"]["contact_screening"] == 0.1
+    assert compaction_parameters(box, 0.2, [1e-3])["solver"]["contact_screening"] == 0.0
+    forced = compaction_parameters(box, 0.0, [1e-3], {"solver.contact_screening": 0.0})
+    assert forced["solver"]["contact_screening"] == 0.0
