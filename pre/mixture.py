@@ -58,18 +58,19 @@ QUASI_STATIC = {
 
 
 def compaction_parameters(bounds: tuple[float, float, float, float], friction: float, pressures,
-                          overrides: dict | None = None, element: str = "T3") -> dict:
+                          overrides: dict | None = None, element: str = "T3", bodies: int = 0) -> dict:
     """Walls, loading, solver and output tables (pre.scene.default_parameters layout) of an
     isotropic compaction by frictionless pressure-driven walls, no gravity, through the stages
     ``pressures`` (P/E, E = 1), each run to equilibrium (phi variation < 1e-4 over check_every
     steps, inertial number < 1e-4, wall force = P L within 1 %). :data:`QUASI_STATIC`, the
-    contact tolerance (:func:`frictional_tolerance`) and rows the soft disks' ``element`` needs
-    at this friction (:func:`frictionless_rows`), then ``overrides`` ("table.key" -> value) set
-    the numerical settings."""
+    contact tolerance (:func:`frictional_tolerance`), the screening of a packing of ``bodies``
+    bodies (:func:`frictionless_screening`) and rows the soft disks' ``element`` needs at this
+    friction (:func:`frictionless_rows`), then ``overrides`` ("table.key" -> value) set the
+    numerical settings."""
     from pre.scene import default_parameters, overridden
 
     params = default_parameters(bounds, friction, 1.0, [float(p) for p in pressures])
-    return overridden(params, {**QUASI_STATIC, **frictional_tolerance(friction), **frictionless_screening(friction),
+    return overridden(params, {**QUASI_STATIC, **frictional_tolerance(friction), **frictionless_screening(friction, bodies),
                                **frictionless_rows(friction, element), **(overrides or {})})
 
 
@@ -88,16 +89,21 @@ def frictional_tolerance(friction: float) -> dict:
     return {"solver.contact_tolerance": 1e-3} if friction > 0.0 else {}
 
 
-def frictionless_screening(friction: float) -> dict:
-    """Contact screening of a compaction at ``friction`` = 0: each contact solve on the contacts
-    that can close (solver.contact_screening 0.1, compute.solvers.screened).
+def frictionless_screening(friction: float, bodies: int) -> dict:
+    """Contact screening of a compaction of ``bodies`` bodies at ``friction``: each contact solve
+    on the contacts that can close (solver.contact_screening 0.1, compute.solvers.screened)
+    where the packing is frictionless and large enough for its solver to be MPRGP (more than
+    compute.solvers.AUTO_QP_BODIES bodies).
 
-    In a compressed soft packing most rows of the Verlet skin stay open, and the frictionless
-    solver's products grow with the rows of each soft body, their dense blocks with the square:
-    the 1500-disk frictionless runs' contact solves cost markedly less, for the same φ
-    (benchmarks/results/screened_rows.md). Frictional runs keep every row: not measured there
-    yet."""
-    return {"solver.contact_screening": 0.1} if friction == 0.0 else {}
+    In a compressed soft packing most rows of the Verlet skin stay open, and MPRGP's products
+    grow with the rows of each soft body, their dense blocks with the square: the 1500-disk
+    frictionless runs' contact solves cost markedly less, for the same φ
+    (benchmarks/results/screened_rows.md). The small frictionless packings, solved by NLGS and
+    block Gauss-Seidel, keep every row: the 30-disk default's runs took other paths with it and
+    were not faster in all. Frictional runs keep every row: not measured there yet."""
+    from compute.solvers import AUTO_QP_BODIES
+
+    return {"solver.contact_screening": 0.1} if friction == 0.0 and bodies > AUTO_QP_BODIES else {}
 
 
 def frictionless_rows(friction: float, element: str = "T3") -> dict:

@@ -166,7 +166,7 @@ def main(argv=None) -> int:
             from compute.scene import read_scene
 
             bounds = read_scene(rigid_scene).walls.bounds
-            params = compaction_parameters(bounds, mu, pressures, overrides, element=a.element)
+            params = compaction_parameters(bounds, mu, pressures, overrides, element=a.element, bodies=a.n)
             for kappa in a.kappa:
                 name = run_name(kappa, mu, seed)
                 if name in kept:

@@ -205,11 +205,15 @@ def test_frictional_compaction_solves_contacts_to_the_looser_tolerance():
         assert forced["solver"]["contact_tolerance"] == 1e-5
 
 
-def test_frictionless_compaction_screens_its_contacts():
-    """Frictionless compactions solve on the contacts that can close (pre.mixture.frictionless_screening),
-    frictional ones on every row; an explicit override wins."""
-    box = (0.0, 4.0, 0.0, 4.0)
-    assert compaction_parameters(box, 0.0, [1e-3])["solver"]["contact_screening"] == 0.1
-    assert compaction_parameters(box, 0.2, [1e-3])["solver"]["contact_screening"] == 0.0
-    forced = compaction_parameters(box, 0.0, [1e-3], {"solver.contact_screening": 0.0})
+def test_large_frictionless_compaction_screens_its_contacts():
+    """Frictionless compactions of more than AUTO_QP_BODIES bodies (MPRGP's) solve on the
+    contacts that can close (pre.mixture.frictionless_screening); small or frictional ones on
+    every row; an explicit override wins."""
+    from compute.solvers import AUTO_QP_BODIES
+
+    box, large = (0.0, 4.0, 0.0, 4.0), AUTO_QP_BODIES + 1
+    assert compaction_parameters(box, 0.0, [1e-3], bodies=large)["solver"]["contact_screening"] == 0.1
+    assert compaction_parameters(box, 0.0, [1e-3], bodies=AUTO_QP_BODIES)["solver"]["contact_screening"] == 0.0
+    assert compaction_parameters(box, 0.2, [1e-3], bodies=large)["solver"]["contact_screening"] == 0.0
+    forced = compaction_parameters(box, 0.0, [1e-3], {"solver.contact_screening": 0.0}, bodies=large)
     assert forced["solver"]["contact_screening"] == 0.0
