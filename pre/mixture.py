@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["choose_deformable", "mixture_scene", "compaction_parameters", "QUASI_STATIC",
-           "frictional_tolerance", "frictionless_screening", "frictionless_rows",
+           "frictional_tolerance", "frictionless_screening", "rigid_soft_rows",
            "RIGID", "SOFT"]
 
 RIGID, SOFT = "rigid", "soft"
@@ -64,14 +64,14 @@ def compaction_parameters(bounds: tuple[float, float, float, float], friction: f
     ``pressures`` (P/E, E = 1), each run to equilibrium (phi variation < 1e-4 over check_every
     steps, inertial number < 1e-4, wall force = P L within 1 %). :data:`QUASI_STATIC`, the
     contact tolerance (:func:`frictional_tolerance`), the screening of a packing of ``bodies``
-    bodies (:func:`frictionless_screening`) and rows the soft disks' ``element`` needs at this
-    friction (:func:`frictionless_rows`), then ``overrides`` ("table.key" -> value) set the
+    bodies (:func:`frictionless_screening`) and the rows the soft disks' ``element`` needs
+    (:func:`rigid_soft_rows`), then ``overrides`` ("table.key" -> value) set the
     numerical settings."""
     from pre.scene import default_parameters, overridden
 
     params = default_parameters(bounds, friction, 1.0, [float(p) for p in pressures])
     return overridden(params, {**QUASI_STATIC, **frictional_tolerance(friction), **frictionless_screening(friction, bodies),
-                               **frictionless_rows(friction, element), **(overrides or {})})
+                               **rigid_soft_rows(element), **(overrides or {})})
 
 
 def frictional_tolerance(friction: float) -> dict:
@@ -106,21 +106,20 @@ def frictionless_screening(friction: float, bodies: int) -> dict:
     return {"solver.contact_screening": 0.1} if friction == 0.0 and bodies > AUTO_QP_BODIES else {}
 
 
-def frictionless_rows(friction: float, element: str = "T3") -> dict:
-    """Contact rows of rigid disks against the boundaries of soft disks of ``element`` in a
-    compaction at ``friction``.
+def rigid_soft_rows(element: str = "T3") -> dict:
+    """Contact rows of rigid disks against the boundaries of soft disks of ``element``.
 
     Node-disk rows hold a soft body's nodes off a rigid disk, not the segments between them.
-    Without friction the nodes slide around a pressed disk, the segment between them stretches
-    and the disk wedges through it: frictionless mixtures then fail at high pressure (an
-    inverted element, a Newton stall) or count φ above 1, where rows against the segments too
-    (compute.contact.soft_rows) keep them complete (benchmarks/results/frictionless_rows.md).
-    With friction the nodes slide less: the node rows alone carry most runs, at fewer steps and
-    nearer a refined mesh's φ at high pressure, though a frictional run can wedge too (the same
-    file). T6 disks keep the node rows: their boundaries have twice the nodes, and with segment
-    rows their half-edges under pressed disks oscillate so that stages may not end. Only a scene
-    holding both rigid and soft disks makes the segment rows (compute.contact.families)."""
-    return {"solver.rigid_soft_rows": "nodes_and_segments"} if friction == 0.0 and element == "T3" else {}
+    The nodes slide around a pressed disk, the segment between them stretches and the disk
+    wedges through it: mixtures then fail at high pressure (an inverted element, a Newton stall)
+    or count phi above 1. Rows against the segments too (compute.contact.soft_rows) keep them
+    complete (benchmarks/results/frictionless_rows.md). Without friction the nodes slide freely
+    and most mixtures wedge; with friction fewer do, but the 1500-disk frictional runs wedged as
+    well, so every T3 mixture gets the segment rows. T6 disks keep the node rows: their
+    boundaries have twice the nodes, and with segment rows their half-edges under pressed disks
+    oscillate so that stages may not end. Only a scene holding both rigid and soft disks makes
+    the segment rows (compute.contact.families)."""
+    return {"solver.rigid_soft_rows": "nodes_and_segments"} if element == "T3" else {}
 
 
 def choose_deformable(radii: np.ndarray, kappa: float, rng: np.random.Generator | None = None) -> np.ndarray:

@@ -73,16 +73,15 @@ def test_mixture_scene_from_rigid_scene(tmp_path):
 
 
 
-def test_frictionless_compaction_keeps_disks_off_the_segments():
-    """Frictionless compactions of T3 disks hold rigid disks off the soft segments as well as the
-    nodes (the wedging of pre.mixture.frictionless_rows); frictional ones and T6 disks keep the
-    node rows alone; an explicit override wins; a scene without both kinds builds no segment
-    family."""
+def test_t3_compactions_keep_disks_off_the_segments():
+    """Compactions of T3 disks, with or without friction, hold rigid disks off the soft segments
+    as well as the nodes (the wedging of pre.mixture.rigid_soft_rows); T6 disks keep the node
+    rows alone; an explicit override wins; a scene without both kinds builds no segment family."""
     from compute.contact.families import families_of
 
     box = (0.0, 4.0, 0.0, 4.0)
     assert compaction_parameters(box, 0.0, [1e-3])["solver"]["rigid_soft_rows"] == "nodes_and_segments"
-    assert compaction_parameters(box, 0.2, [1e-3])["solver"]["rigid_soft_rows"] == "nodes"
+    assert compaction_parameters(box, 0.2, [1e-3])["solver"]["rigid_soft_rows"] == "nodes_and_segments"
     assert compaction_parameters(box, 0.0, [1e-3], element="T6")["solver"]["rigid_soft_rows"] == "nodes"
     forced = compaction_parameters(box, 0.0, [1e-3], {"solver.rigid_soft_rows": "nodes"})
     assert forced["solver"]["rigid_soft_rows"] == "nodes"
