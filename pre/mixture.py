@@ -113,7 +113,7 @@ def rigid_soft_rows(element: str = "T3") -> dict:
     The nodes slide around a pressed disk, the segment between them stretches and the disk
     wedges through it: mixtures then fail at high pressure (an inverted element, a Newton stall)
     or count phi above 1. Rows against the segments too (compute.contact.soft_rows) keep them
-    complete (benchmarks/results/frictionless_rows.md). Without friction the nodes slide freely
+    complete (benchmarks/results/rigid_soft_rows.md). Without friction the nodes slide freely
     and most mixtures wedge; with friction fewer do, but the 1500-disk frictional runs wedged as
     well, so every T3 mixture gets the segment rows. T6 disks keep the node rows: their
     boundaries have twice the nodes, and with segment rows their half-edges under pressed disks

@@ -24,7 +24,7 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   nodes are kept out of the disk: where a soft body wraps around it, the disk's arc passes
   into the body's polygon between the nodes pressed on it (post.measures' rigid overlap), and
   at high pressure a disk can wedge through a stretched boundary segment into the body, deep
-  enough in frictionless mixtures to invert elements (benchmarks/experiments/README.md,
+  enough to invert elements, in frictionless mixtures mostly (benchmarks/experiments/README.md,
   studies/mixture_compaction/README.md; benchmarks/experiments/overlaps.py lists them). The
   scene's ``solver.rigid_soft_rows = "nodes_and_segments"`` adds the segment-disk rows below,
   which keep the disk off the segments too.
@@ -45,8 +45,9 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   step (a period-2 oscillation), every step starts with many rows inside by about a half-edge's
   sagitta that the next step pushes out, and the packing creeps: a stage does not end. With T3
   there is no such oscillation, but a program takes more steps. What they buy: at high
-  pressure next to no overlap of rigid and soft bodies and no wedged disk, where frictionless T3
-  mixtures with rigid disks can fail with node-disk rows alone. What they cost in accuracy on a
+  pressure next to no overlap of rigid and soft bodies and no wedged disk, where T3 mixtures
+  with rigid disks can fail with node-disk rows alone (frictionless ones mostly, frictional ones
+  now and then). What they cost in accuracy on a
   coarse mesh: the disk cannot sink into a straight segment until both its nodes move, so a
   20-node boundary is stiffer against it than the body it stands for, and φ comes out below
   the value both formulations approach as the mesh is refined, farther than node rows' φ less
