@@ -32,10 +32,23 @@ def new_figure(nrows: int = 1, ncols: int = 1, size: tuple[float, float] = (5.0,
 
 
 def save_figure(figure, path: str | Path, dpi: int = 150) -> Path:
-    """Save figure as path (format from the suffix), creating the folder."""
+    """Save figure as path (format from the suffix), creating the folder. A PNG is written with
+    an adaptive palette of 256 colours (Pillow's median cut): a frame of a large packing, each
+    disk its own shade, is several times smaller so, and the study folders that keep their
+    figures stay small; the colours move by less than a palette step."""
+    import io
+
+    from PIL import Image
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=dpi)
+    if path.suffix.lower() != ".png":
+        figure.savefig(path, dpi=dpi)
+        return path
+    rendered = io.BytesIO()
+    figure.savefig(rendered, format="png", dpi=dpi)
+    with Image.open(rendered) as image:
+        image.convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
     return path
 
 

@@ -155,3 +155,25 @@ def test_a_body_pressure_is_the_area_weighted_mean_of_its_cells():
     p = body_pressures(3, points, [t3, t6])
     np.testing.assert_allclose(p[:2], [(4 * 1 + 0 * 3) / 4, (3 * 8 / 3 - 1 * 2) / (8 / 3 + 2)])
     assert np.isnan(p[2])
+
+
+def test_saved_png_is_a_palette_close_to_the_rendering(tmp_path):
+    """save_figure writes a PNG as a 256-colour palette whose pixels stay within a few levels of
+    matplotlib's own full-colour rendering of the same figure (a smooth viridis field, the
+    hardest case for a palette), and other formats as matplotlib writes them."""
+    from PIL import Image
+
+    figure, axes = plots.new_figure(1, 1)
+    x, y = np.meshgrid(np.linspace(0.0, 1.0, 300), np.linspace(0.0, 1.0, 200))
+    axes[0, 0].imshow(np.sin(6 * x) * np.cos(4 * y) + x, cmap="viridis")
+    path = plots.save_figure(figure, tmp_path / "field.png")
+    figure.savefig(tmp_path / "direct.png", dpi=150)
+    with Image.open(path) as saved, Image.open(tmp_path / "direct.png") as direct:
+        assert saved.mode == "P"
+        ours = np.asarray(saved.convert("RGB"), dtype=float)
+        theirs = np.asarray(direct.convert("RGB"), dtype=float)
+    assert ours.shape == theirs.shape
+    difference = np.abs(ours - theirs)
+    assert difference.mean() < 2.0 and np.percentile(difference, 99) < 12.0
+    assert (tmp_path / "direct.png").stat().st_size > path.stat().st_size
+    assert plots.save_figure(figure, tmp_path / "field.pdf").read_bytes()[:4] == b"%PDF"
