@@ -100,7 +100,8 @@ def frictionless_screening(friction: float, bodies: int) -> dict:
     frictionless runs' contact solves cost markedly less, for the same φ
     (benchmarks/results/screened_rows.md). The small frictionless packings, solved by NLGS and
     block Gauss-Seidel, keep every row: the 30-disk default's runs took other paths with it and
-    were not faster in all. Frictional runs keep every row: not measured there yet."""
+    were not faster in all. Frictional runs keep every row: warm-started NLGS gains
+    nothing from it at N = 1500 (the same file)."""
     from compute.solvers import AUTO_QP_BODIES
 
     return {"solver.contact_screening": 0.1} if friction == 0.0 and bodies > AUTO_QP_BODIES else {}
