@@ -26,11 +26,11 @@ solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:f
   friction is refused): the problem as a bound-constrained quadratic program, solved by
   projected conjugate gradients on the whole packing, warm-started; ``nlgs_max_sweeps`` bounds
   its iterations;
-- ``"auto"`` (default): without soft bodies, ``nlgs_ip`` up to ``AUTO_FALLBACK_BODIES`` movable
-  rigid bodies and ``nlgs`` above (a block would be one contact: the same iteration, dearer);
-  ``block`` for a scene whose only moving bodies are one soft body and the walls; ``nlgs_block``
-  for soft bodies among other bodies, or ``mprgp`` where none of them has friction and they are
-  more than ``AUTO_QP_BODIES``. Why: near jamming, frictional rigid packings pose contact
+- ``"auto"`` (default): ``mprgp`` for a packing without friction of more than
+  ``AUTO_QP_BODIES`` movable bodies, rigid or soft; otherwise, without soft bodies, ``nlgs_ip`` up
+  to ``AUTO_FALLBACK_BODIES`` movable rigid bodies and ``nlgs`` above (a block would be one
+  contact: the same iteration, dearer); ``block`` for a scene whose only moving bodies are one
+  soft body and the walls; ``nlgs_block`` for soft bodies among other bodies. Why: near jamming, frictional rigid packings pose contact
   problems on which NLGS needs tens of thousands of sweeps, so its solves end above tolerance at
   their sweep limit; with the interior-point fallback the rigid_jamming study's default runs end
   COMPLETE in less time, but the fallback's sparse factorisations grow faster than a sweep:
@@ -45,7 +45,8 @@ solver knows nothing of body kinds. Chosen by the scene's ``solver.contact`` (:f
   point per fallback, at any Newton iteration) and pays off only at tight ones. Without
   friction the contact problem is a convex quadratic program, and ``mprgp``, conjugate gradients
   over the whole packing, needs far fewer iterations than NLGS needs sweeps, each a little dearer
-  than a sweep: frictionless mixtures run markedly faster. ``nlgs_block`` is kept for the
+  than a sweep: frictionless mixtures run markedly faster, and so do frictionless rigid
+  packings (benchmarks/results/frictionless_relaxation.md). ``nlgs_block`` is kept for the
   smallest ones (up to ``AUTO_QP_BODIES``), where the gain is least, so that they run as they
   did: the 30-disk default's κ = 0.5 frictionless run equilibrates its second stage only by
   chance, and does not with ``mprgp``, nor with NLGS at a tighter tolerance. Figures:
@@ -69,7 +70,7 @@ import numpy as np
 
 MAX_INTERIOR_POINT_ITERATIONS = 200  # an interior point that needs more has stalled
 AUTO_FALLBACK_BODIES = 500  # auto: rigid scenes up to this many movable bodies get nlgs_ip (module docstring)
-AUTO_QP_BODIES = 100  # auto: frictionless soft mixtures above this many movable bodies get mprgp (module docstring)
+AUTO_QP_BODIES = 100  # auto: frictionless packings above this many movable bodies get mprgp (module docstring)
 
 
 def for_model(settings, model):
@@ -106,12 +107,14 @@ def _chosen(settings, n_soft: int, n_rigid: int, diameter: float, frictionless: 
     tol, sweeps = settings.contact_tolerance, settings.nlgs_max_sweeps
     kind = settings.contact
     if kind == "auto":
-        if n_soft == 0:
+        if frictionless and n_soft + n_rigid > AUTO_QP_BODIES:
+            kind = "mprgp"
+        elif n_soft == 0:
             kind = "nlgs_ip" if n_rigid <= AUTO_FALLBACK_BODIES else "nlgs"
         elif n_rigid == 0 and n_soft == 1:
             kind = "block"
         else:
-            kind = "mprgp" if frictionless and n_soft + n_rigid > AUTO_QP_BODIES else "nlgs_block"
+            kind = "nlgs_block"
     if kind == "interior_point":
         return InteriorPoint(tol, min(sweeps, MAX_INTERIOR_POINT_ITERATIONS), measure)
     if kind == "mprgp":

@@ -243,7 +243,7 @@ def test_block_fallback_solves_problems_where_point_gauss_seidel_stalls(kind, se
 def test_auto_choice():
     """nlgs_ip (cone fixed point as its rigid fallback) for a small rigid packing, nlgs for a
     large one, block for one soft body alone in its walls, nlgs_block for soft bodies among others,
-    mprgp for more than AUTO_QP_BODIES of them without friction (compute.solvers docstring)."""
+    mprgp for more than AUTO_QP_BODIES bodies without friction, rigid or soft (compute.solvers docstring)."""
     from types import SimpleNamespace
 
     from compute.solvers import for_scene
@@ -255,6 +255,8 @@ def test_auto_choice():
     assert isinstance(for_scene(settings, 2, 0).fallbacks[0], BlockGS)
     assert isinstance(for_scene(settings, 0, 100).fallbacks[1], ConePoint)
     assert isinstance(for_scene(settings, 0, 1500), NLGS)
+    assert isinstance(for_scene(settings, 0, 1500, frictionless=True), MPRGP)  # a large frictionless rigid packing
+    assert isinstance(for_scene(settings, 0, 100, frictionless=True).fallbacks[1], ConePoint)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "block"}), 72, 72), BlockGS)
     assert isinstance(for_scene(SimpleNamespace(**{**vars(settings), "contact": "mprgp"}), 72, 72), MPRGP)
     assert isinstance(for_scene(settings, 300, 1200, frictionless=True), MPRGP)  # a large frictionless mixture
@@ -262,7 +264,6 @@ def test_auto_choice():
     assert isinstance(for_scene(settings, 72, 72, frictionless=True), MPRGP)
     assert isinstance(for_scene(settings, 10, 20, frictionless=True).fallbacks[0], BlockGS)  # a small one
     assert isinstance(for_scene(settings, 1, 0, frictionless=True), BlockGS)  # one soft body alone
-    assert isinstance(for_scene(settings, 0, 1500, frictionless=True), NLGS)  # rigid: as with friction
     screened = for_scene(SimpleNamespace(**{**vars(settings), "contact_screening": 0.1}), 300, 1200, frictionless=True)
     assert isinstance(screened, Screened) and isinstance(screened.inner, MPRGP) and screened.margin == 0.1
 
