@@ -52,14 +52,41 @@ def jammed_rigid_scene(workdir: str | Path, n: int, friction: float, seed: int, 
     loading program ``pressures``. The preparation run is kept in ``workdir``/jamming."""
     from pre.packing import polydisperse_radii, random_loose_packing
 
-    workdir = Path(workdir)
     rng = np.random.default_rng(seed)
     radii = polydisperse_radii(n, rng=rng)
     centres, box = random_loose_packing(radii, loose_phi, rng)
+    return _jammed_scene(workdir, centres, radii, box, friction, pressures, overrides, log)
+
+
+def relaxed_rigid_scene(rigid_scene: str | Path, workdir: str | Path, friction: float,
+                        overrides: dict | None = None, log=None) -> Path:
+    """Write ``workdir``/scene: the jammed rigid disks of the scene folder ``rigid_scene``, jammed
+    again from their positions with the friction ``friction``, with that scene's loading program.
+
+    Why: a packing jammed with friction is not in equilibrium with less of it. Given a smaller
+    coefficient it flows until it jams again, denser, and that flow at a small pressure is much
+    cheaper to compute with rigid disks than with the finite-element disks that will replace
+    some of them. The run is kept in ``workdir``/jamming; the bodies keep their order."""
+    from compute.scene import read_scene
+
+    scene = read_scene(rigid_scene)
+    if scene.deformable or len(scene.rigid_ids) != scene.n_bodies:
+        raise ValueError(f"{scene.path}: expected a scene of rigid disks only")
+    centres, radii = np.zeros((scene.n_bodies, 2)), np.zeros(scene.n_bodies)
+    centres[scene.rigid_ids], radii[scene.rigid_ids] = scene.rigid_centres, scene.rigid_radii
+    return _jammed_scene(workdir, centres, radii, tuple(scene.walls.bounds), friction,
+                         list(scene.loading.pressures), overrides, log)
+
+
+def _jammed_scene(workdir, centres, radii, box, friction, pressures, overrides, log) -> Path:
+    """Jam (:func:`jam`) the rigid disks centres (n, 2), radii (n,) in ``box`` at the least of
+    ``pressures`` in ``workdir``/jamming, then write them as ``workdir``/scene with the loading
+    program ``pressures``."""
+    workdir = Path(workdir)
     centres, box = jam(workdir / "jamming", centres, radii, box, friction, pressure=min(pressures),
                        overrides=overrides, log=log)
     params = default_parameters(box, friction, float(2 * radii.mean()), pressures)
     for key, value in (overrides or {}).items():
         table, field = key.split(".")
         params[table][field] = value
-    return write_scene(workdir / "scene", params, centres, radii, ["rigid"] * n)
+    return write_scene(workdir / "scene", params, centres, radii, ["rigid"] * len(radii))

@@ -12,6 +12,14 @@ Preparation (--preparation):
   prepared sample (study README, "Preparation").
 - per-friction: each μ jams its own packing with friction μ.
 
+A run whose μ is below the jamming friction starts (--relax rigid, the default) from the shared
+packing jammed again with rigid disks at its μ (pre.jamming.relaxed_rigid_scene, once per μ and
+seed, in DIR/rigid/mu<jamming μ>_s<seed>_relaxed_mu<μ>/): with less friction the packing flows to a
+denser jammed state at the first pressure, which rigid disks compute in a fraction of the time
+the finite-element disks take; the soft disks' strain there is of the order of P/E = 1e-3. With
+--relax none that flow is the first stage of the run itself. Either way φ₀ and Z₀ are the
+prepared (shared) sample's.
+
 The prepared sample's φ₀ and Z₀, written per run in study.json ("prepared"), are measured as post
 measures a frame (post.measures): φ on the mixture scene (rigid disks π r², soft disks by their
 element areas, the box of its walls); the Z columns on the jamming run's last frame (the same
@@ -19,12 +27,14 @@ positions; rattlers by the jamming friction's rule, post.measures.default_min_co
 kept with the jamming record so that --add reusing it has them.
 
 Writes DIR/study.json (the runs and their parameters), DIR/rigid/mu<μ>_s<seed>/ (the jamming
-runs and the jammed rigid scenes) and DIR/runs/k<κ>_mu<μ>_s<seed>/scene. Reduced units: mean
+runs and the jammed rigid scenes; *_relaxed_mu<μ>/ the relaxed ones) and
+DIR/runs/k<κ>_mu<μ>_s<seed>/scene. Reduced units: mean
 diameter 1, density 1, E = 1 (soft disks; rigid ones have E = infinity).
 
 With --add, the (κ, μ, seed) runs not yet in DIR/study.json are added to it: the study's runs
 keep their scenes and outputs (some may be running), a jammed packing of the same (μ, seed) is
-reused, and the study's settings (N, elements, pressures, preparation, --set) must be the same.
+reused (a relaxed one too), and the study's settings (N, elements, pressures, preparation, --relax,
+--set) must be the same.
 Why: a large study is run over several sessions, one or two runs at a time, and analysed as one
 study. A study.json without "preparation" (written before it existed) is per-friction.
 """
@@ -45,9 +55,13 @@ import numpy as np
 # The small default: the whole study (4 kappa x 2 mu, one seed) to P/E = 1 in 7 stages (the
 # program of the 1500-disk runs), a few minutes on 2 cores (measured: README.md).
 DEFAULTS = {"n": 30, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
-            "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.2}
+            "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.2,
+            "relax": "rigid"}
 # what a study.json written before a setting existed holds (--add compares with it)
-LEGACY_SETTINGS = {"preparation": "per-friction"}
+LEGACY_SETTINGS = {"preparation": "per-friction", "relax": "none"}
+# the rigid jamming runs of the preparation: jammed at P = 1 in units of rho <d>^2/t^2 (rigid
+# disks: P only sets the time scale)
+JAMMING_OVERRIDES = {"solver.time_step": 0.1}
 
 
 def run_name(kappa: float, mu: float, seed: int) -> str:
@@ -83,6 +97,10 @@ def main(argv=None) -> int:
     p.add_argument("--jamming-mu", type=float, default=None,
                    help=f"shared preparation: friction of the rigid disks while they are jammed "
                         f"(default {DEFAULTS['jamming_mu']})")
+    p.add_argument("--relax", choices=("rigid", "none"), default=None,
+                   help="shared preparation: runs with less friction than --jamming-mu start from the packing "
+                        "jammed again with rigid disks at their friction (rigid, the default) or from the "
+                        "shared packing itself (none; module docstring)")
     p.add_argument("--seeds", type=int, nargs="+", default=DEFAULTS["seeds"], help="random seeds (default 1)")
     p.add_argument("--p-min", type=float, default=DEFAULTS["p_min"], help="first P/E (default 1e-3)")
     p.add_argument("--p-max", type=float, default=DEFAULTS["p_max"], help=f"last P/E (default {DEFAULTS['p_max']})")
@@ -103,11 +121,12 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.add and a.force:
         p.error("--add keeps the study's outputs, --force deletes them: give one of them")
-    if a.preparation == "per-friction" and a.jamming_mu is not None:
-        p.error("--jamming-mu is the friction of the shared preparation; per-friction jams each mu with itself")
+    if a.preparation == "per-friction" and (a.jamming_mu is not None or a.relax is not None):
+        p.error("--jamming-mu and --relax set the shared preparation; per-friction jams each mu with itself")
+    relax = (a.relax or DEFAULTS["relax"]) if a.preparation == "shared" else "none"
     shared_mu = (DEFAULTS["jamming_mu"] if a.jamming_mu is None else a.jamming_mu) if a.preparation == "shared" else None
 
-    from pre.jamming import jammed_rigid_scene
+    from pre.jamming import jammed_rigid_scene, relaxed_rigid_scene
     from post.frames import read_frames_table
     from pre.mixture import compaction_parameters, mixture_scene
     from pre.scene import neo_hookean_material
@@ -122,11 +141,11 @@ def main(argv=None) -> int:
     settings = {"study": "mixture_compaction", "n": a.n, "element": a.element, "elements": a.elements,
                 "volumetric": neo_hookean_material(a.element, a.volumetric)["volumetric"],
                 "pressures_over_E": [float(x) for x in pressures], "young": 1.0, "poisson": 0.495,
-                "overrides": overrides, "preparation": a.preparation, "jamming_mu": shared_mu}
+                "overrides": overrides, "preparation": a.preparation, "jamming_mu": shared_mu, "relax": relax}
     if a.add:
         before = _study_to_extend(p, w / "study.json", settings)
     else:
-        before = {"jamming": [], "runs": [], "pre_seconds": 0.0}
+        before = {"jamming": [], "relaxed": [], "runs": [], "pre_seconds": 0.0}
         existing = sorted((w / "runs").glob("*/out"))
         if existing and not a.force:
             p.error(f"{w / 'runs'} already holds run outputs ({existing[0]} ...): use --force to start the study "
@@ -136,8 +155,9 @@ def main(argv=None) -> int:
         (w / "post").exists() and a.force and shutil.rmtree(w / "post")
     kept = {r["name"] for r in before["runs"]}
     jammed = {(j["mu"], j["seed"]): j for j in before["jamming"]}
+    relaxed = {(j["mu"], j["seed"]): j for j in before.get("relaxed", [])}
 
-    runs, jams = [], []
+    runs, jams, relaxations = [], [], []
     t_start = time.perf_counter()
     for mu in a.mu:
         mu_jam = mu if shared_mu is None else shared_mu
@@ -152,7 +172,7 @@ def main(argv=None) -> int:
                 rigid_dir = w / "rigid" / f"mu{mu_jam:g}_s{seed}"
                 # jammed at P = 1 in units of rho <d>^2/t^2 (rigid disks: P only sets the time scale)
                 rigid_scene = jammed_rigid_scene(rigid_dir, a.n, mu_jam, seed, [1.0],
-                                                 overrides={"solver.time_step": 0.1}, log=lambda msg: None)
+                                                 overrides=JAMMING_OVERRIDES, log=lambda msg: None)
                 equilibrated = read_frames_table(rigid_dir / "jamming" / "out")[-1].equilibrated
                 jammed[(mu_jam, seed)] = {"mu": mu_jam, "seed": seed, "scene": str(rigid_scene.relative_to(w)),
                                           "equilibrated": equilibrated, "seconds": round(time.perf_counter() - t0, 1),
@@ -165,6 +185,21 @@ def main(argv=None) -> int:
                 jam["measures"] = jammed_measures((w / jam["scene"]).parent / "jamming" / "out", mu_jam)
             from compute.scene import read_scene
 
+            prepared_bounds = read_scene(rigid_scene).walls.bounds
+            if relax == "rigid" and mu < mu_jam:
+                if (mu, seed) not in relaxed:
+                    t0 = time.perf_counter()
+                    relaxed_dir = w / "rigid" / f"mu{mu_jam:g}_s{seed}_relaxed_mu{mu:g}"
+                    scene = relaxed_rigid_scene(rigid_scene, relaxed_dir, mu, overrides=JAMMING_OVERRIDES,
+                                                log=lambda msg: None)
+                    record = read_frames_table(relaxed_dir / "jamming" / "out")[-1]
+                    relaxed[(mu, seed)] = {"mu": mu, "seed": seed, "from_mu": mu_jam,
+                                           "scene": str(scene.relative_to(w)), "equilibrated": record.equilibrated,
+                                           "seconds": round(time.perf_counter() - t0, 1)}
+                    relaxations.append(relaxed[(mu, seed)])
+                    print(f"relaxed at mu = {mu:g}, seed {seed}: {scene} ({time.perf_counter() - t0:.1f} s"
+                          f"{'' if record.equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
+                rigid_scene = w / relaxed[(mu, seed)]["scene"]
             bounds = read_scene(rigid_scene).walls.bounds
             params = compaction_parameters(bounds, mu, pressures, overrides, element=a.element, bodies=a.n)
             for kappa in a.kappa:
@@ -178,7 +213,8 @@ def main(argv=None) -> int:
                 radii = np.asarray(read_scene(folder).radius)
                 actual = float(np.sum(radii[soft] ** 2) / np.sum(radii**2))
                 prepared = None if jam["measures"] is None else {
-                    "phi": prepared_phi(folder), **{k: v for k, v in jam["measures"].items() if k.startswith("Z")}}
+                    "phi": prepared_phi(folder, prepared_bounds),
+                    **{k: v for k, v in jam["measures"].items() if k.startswith("Z")}}
                 runs.append({"name": name, "kappa": kappa, "mu": mu, "jamming_mu": mu_jam, "seed": seed,
                              "n_soft": int(soft.sum()),
                              "kappa_actual": round(actual, 6), "scene": str(folder.relative_to(w)),
@@ -186,17 +222,20 @@ def main(argv=None) -> int:
                 print(f"  {name}: {int(soft.sum())} of {a.n} disks deformable (volume fraction {actual:.3f})"
                       + (f", prepared phi0 = {prepared['phi']:.4f}, Z0 = {prepared['Z']:.3f}" if prepared else ""),
                       flush=True)
-    study = {**settings, "jamming": before["jamming"] + jams, "runs": before["runs"] + runs,
+    study = {**settings, "jamming": before["jamming"] + jams, "relaxed": before.get("relaxed", []) + relaxations,
+             "runs": before["runs"] + runs,
              "pre_seconds": round(before["pre_seconds"] + time.perf_counter() - t_start, 1)}
     (w / "study.json").write_text(json.dumps(study, indent=1) + "\n")
     print(f"{len(runs)} scenes written; study description {w / 'study.json'} ({len(study['runs'])} runs)")
     return 0
 
 
-def prepared_phi(scene_folder: Path) -> float:
-    """φ of a scene as post measures it on a frame (post.measures): rigid disks π r², soft disks by
-    their element areas (a T3 disk is its inscribed boundary polygon, less than π r²), over the
-    box of the scene's walls. Why: the runs' φ is measured so, and φ₀ must be on the same scale."""
+def prepared_phi(scene_folder: Path, bounds) -> float:
+    """φ of a scene's particles as post measures it on a frame (post.measures): rigid disks π r²,
+    soft disks by their element areas (a T3 disk is its inscribed boundary polygon, less than
+    π r²), over the box ``bounds`` (xmin, xmax, ymin, ymax) of the prepared packing (a relaxed
+    run's scene has a smaller one). Why: the runs' φ is measured so, and φ₀ must be on the same
+    scale."""
     from compute.scene import read_scene
     from post import measures
 
@@ -207,7 +246,7 @@ def prepared_phi(scene_folder: Path) -> float:
     points = np.concatenate([d.points for d in scene.deformable] + [np.empty((0, 2))])
     meshes = [(d.cells + offset, np.full(len(d.cells), d.body)) for d, offset in zip(scene.deformable, offsets)]
     areas = measures.particle_areas(np.asarray(scene.radius), rigid, points, meshes)
-    return measures.packing_fraction(areas, measures.box_area(np.asarray(scene.walls.bounds)))
+    return measures.packing_fraction(areas, measures.box_area(np.asarray(bounds)))
 
 
 def jammed_measures(out: Path, friction: float, threshold: float = 1e-9) -> dict | None:

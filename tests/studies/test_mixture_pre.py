@@ -170,13 +170,52 @@ def test_shared_preparation_one_sample_for_both_frictions(tmp_path):
 
     bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--preparation", "per-friction")
     assert bad.returncode == 2 and "field 'preparation'" in bad.stderr
+    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--relax", "none")
+    assert bad.returncode == 2 and "field 'relax'" in bad.stderr
+
+
+def _box_area(scene) -> float:
+    import tomllib
+
+    w = tomllib.loads((scene / "scene.toml").read_text())["walls"]
+    return (w["xmax"] - w["xmin"]) * (w["ymax"] - w["ymin"])
+
+
+@pytest.mark.parametrize("relax", ["rigid", "none"])
+def test_frictionless_runs_start_from_the_relaxed_packing(tmp_path, relax):
+    """--relax rigid (default): the μ = 0 runs start from the shared packing jammed again with rigid
+    frictionless disks, the μ = 0.2 runs from the shared packing; φ₀ stays the prepared sample's.
+    Pushed by constant pressure from rest, rigid disks that dissipate can only lower P × box area
+    (no elastic energy to store), so the relaxed box is not larger than the jammed one."""
+    import json
+
+    done = _pre(tmp_path, "--relax", relax)
+    assert done.returncode == 0, done.stderr
+    study = json.loads((tmp_path / "study.json").read_text())
+    runs = {(r["kappa"], r["mu"]): r for r in study["runs"]}
+    jammed = tmp_path / "rigid" / "mu0.2_s1" / "scene"
+    if relax == "none":
+        assert study["relaxed"] == []
+        assert {_box_area(tmp_path / r["scene"]) for r in runs.values()} == {_box_area(jammed)}
+        return
+    (record,) = study["relaxed"]
+    assert (record["mu"], record["from_mu"], record["equilibrated"]) == (0.0, 0.2, True)
+    relaxed = tmp_path / record["scene"]
+    assert _box_area(relaxed) <= _box_area(jammed) * (1 + 1e-9)
+    for kappa in (0.5, 1):
+        frictionless, frictional = runs[(kappa, 0.0)], runs[(kappa, 0.2)]
+        assert _box_area(tmp_path / frictionless["scene"]) == _box_area(relaxed)
+        assert _box_area(tmp_path / frictional["scene"]) == _box_area(jammed)
+        assert frictionless["prepared"] == frictional["prepared"]
+        assert frictional["prepared"]["phi"] == pytest.approx(_phi_of_scene(tmp_path / frictional["scene"]), rel=1e-12)
 
 
 def test_per_friction_preparation_jams_each_friction(tmp_path):
     import json
 
-    refused = _pre(tmp_path, "--preparation", "per-friction", "--jamming-mu", "0.2")
-    assert refused.returncode == 2 and "--jamming-mu" in refused.stderr
+    for option in (["--jamming-mu", "0.2"], ["--relax", "rigid"]):
+        refused = _pre(tmp_path, "--preparation", "per-friction", *option)
+        assert refused.returncode == 2 and option[0] in refused.stderr
     done = _pre(tmp_path, "--preparation", "per-friction")
     assert done.returncode == 0, done.stderr
     study = json.loads((tmp_path / "study.json").read_text())
