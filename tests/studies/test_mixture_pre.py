@@ -170,7 +170,7 @@ def test_shared_preparation_one_sample_for_both_frictions(tmp_path):
 
     bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--preparation", "per-friction")
     assert bad.returncode == 2 and "field 'preparation'" in bad.stderr
-    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--relax", "none")
+    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--relax", "rigid")
     assert bad.returncode == 2 and "field 'relax'" in bad.stderr
 
 
@@ -183,7 +183,7 @@ def _box_area(scene) -> float:
 
 @pytest.mark.parametrize("relax", ["rigid", "none"])
 def test_frictionless_runs_start_from_the_relaxed_packing(tmp_path, relax):
-    """--relax rigid (default): the μ = 0 runs start from the shared packing jammed again with rigid
+    """--relax rigid: the μ = 0 runs start from the shared packing jammed again with rigid
     frictionless disks, the μ = 0.2 runs from the shared packing; φ₀ stays the prepared sample's.
     Pushed by constant pressure from rest, rigid disks that dissipate can only lower P × box area
     (no elastic energy to store), so the relaxed box is not larger than the jammed one."""
