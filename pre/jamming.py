@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pre.scene import default_parameters, write_scene
+from pre.scene import default_parameters, overridden, write_scene
 
 
 def jam(workdir: str | Path, centres: np.ndarray, radii: np.ndarray, box: tuple[float, float, float, float],
@@ -31,10 +31,7 @@ def jam(workdir: str | Path, centres: np.ndarray, radii: np.ndarray, box: tuple[
     workdir = Path(workdir)
     params = default_parameters(box, friction, float(2 * radii.mean()), [pressure])
     params["walls"]["damping_inertial_number"] = inertial_number
-    for key, value in (overrides or {}).items():
-        table, field = key.split(".")
-        params[table][field] = value
-    write_scene(workdir / "scene", params, centres, radii, ["rigid"] * len(radii))
+    write_scene(workdir / "scene", overridden(params, overrides), centres, radii, ["rigid"] * len(radii))
     state = run(workdir / "scene", workdir / "out", log=log)
     last = state.frame - 1
     bodies = vtu.read(frame_path(workdir / "out", "bodies", last))
@@ -85,8 +82,5 @@ def _jammed_scene(workdir, centres, radii, box, friction, pressures, overrides, 
     workdir = Path(workdir)
     centres, box = jam(workdir / "jamming", centres, radii, box, friction, pressure=min(pressures),
                        overrides=overrides, log=log)
-    params = default_parameters(box, friction, float(2 * radii.mean()), pressures)
-    for key, value in (overrides or {}).items():
-        table, field = key.split(".")
-        params[table][field] = value
+    params = overridden(default_parameters(box, friction, float(2 * radii.mean()), pressures), overrides)
     return write_scene(workdir / "scene", params, centres, radii, ["rigid"] * len(radii))

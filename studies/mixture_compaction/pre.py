@@ -187,7 +187,7 @@ def main(argv=None) -> int:
                 jam["measures"] = jammed_measures((w / jam["scene"]).parent / "jamming" / "out", mu_jam)
             from compute.scene import read_scene
 
-            prepared_bounds = read_scene(rigid_scene).walls.bounds
+            prepared_bounds = bounds = read_scene(rigid_scene).walls.bounds
             if relax == "rigid" and mu < mu_jam:
                 if (mu, seed) not in relaxed:
                     t0 = time.perf_counter()
@@ -202,7 +202,7 @@ def main(argv=None) -> int:
                     print(f"relaxed at mu = {mu:g}, seed {seed}: {scene} ({time.perf_counter() - t0:.1f} s"
                           f"{'' if record.equilibrated else ', NOT equilibrated within the step budget'})", flush=True)
                 rigid_scene = w / relaxed[(mu, seed)]["scene"]
-            bounds = read_scene(rigid_scene).walls.bounds
+                bounds = read_scene(rigid_scene).walls.bounds
             params = compaction_parameters(bounds, mu, pressures, overrides, element=a.element, bodies=a.n)
             for kappa in a.kappa:
                 name = run_name(kappa, mu, seed)
