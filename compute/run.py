@@ -46,7 +46,7 @@ from compute.state import State
 from compute.stepping import load_control
 from compute.stepping.moreau_jean import Stepper
 from compute.frames import wall_forces
-from compute.bodies.walls import breathing_damping, inertial_number, secant_bulk_modulus, wall_lengths
+from compute.bodies.walls import breathing_damping, inertial_number, stage_bulk_modulus, wall_lengths
 
 STOP_FILE = "STOP"  # OUT/STOP asks the run to stop after its step (module docstring)
 
@@ -218,7 +218,7 @@ class Run:
         for group in self.model.soft:  # the stage's inertia (compute.bodies.soft, mass scaling)
             group.scale_mass(mass_scale(solver.mass_scaling, pressure, solver.time_step,
                                         group.batch.material.density, self.model.diameter))
-        self.model.walls.stage_damping = self._stage_damping()
+        self.model.walls.stage_damping = self._stage_damping(pressure)
         if self.model.walls.stage_damping > 0.0 and self.state.stage_steps == 0:
             self.log(f"stage {self.state.stage}: wall damping at least {self.model.walls.stage_damping:.4g} "
                      f"(walls.damping_ratio)")
@@ -257,11 +257,12 @@ class Run:
         self.checkpoint()
         return None
 
-    def _stage_damping(self) -> float:
-        """The stage's least wall damping (compute.bodies.walls.breathing_damping) from the
-        equilibrated frames written so far, the scene's initial box counting as one at P = 0
-        (its secant, the first stage's, also holds the packing's rearrangement, so it damps
-        less); read from frames.csv so that a resumed stage gets the same value."""
+    def _stage_damping(self, pressure: float) -> float:
+        """The least wall damping of the stage at ``pressure`` (compute.bodies.walls.breathing_damping,
+        stage_bulk_modulus) from the equilibrated frames written so far, the scene's initial box
+        counting as one at P = 0 (its secant, the first stage's, also holds the packing's
+        rearrangement, so it damps less, and it is not extrapolated); read from frames.csv so that
+        a resumed stage gets the same value."""
         ratio = self.scene.walls.damping_ratio
         if ratio == 0.0:
             return 0.0
@@ -270,7 +271,7 @@ class Run:
                           + [[float(r[k]) for k in ("xmin", "xmax", "ymin", "ymax")] for r in rows])
         pressures = np.array([0.0] + [float(r["pressure_applied"]) for r in rows])
         areas = (bounds[:, 1] - bounds[:, 0]) * (bounds[:, 3] - bounds[:, 2])
-        return breathing_damping(ratio, secant_bulk_modulus(pressures, areas), self.model.particle_mass(),
+        return breathing_damping(ratio, stage_bulk_modulus(pressures, areas, pressure), self.model.particle_mass(),
                                  self.scene.walls.mass)
 
     def _velocity_stage(self) -> None:

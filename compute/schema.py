@@ -130,7 +130,7 @@ WALLS = (
     Key("damping_inertial_number", "float", "wall damping whose terminal speed gives this inertial number (0: none)",
         low=0.0, high=1.0, default=0.0),
     Key("damping_ratio", "float", "wall damping at least this fraction of the critical damping of the "
-        "packing's breathing mode, from its secant bulk modulus between the last two stage ends (0: none)",
+        "packing's breathing mode, from its bulk modulus extrapolated from the last stage ends (0: none)",
         low=0.0, high=10.0, default=0.0),
     Key("friction", "float", "walls are frictionless", low=0.0, high=0.0, default=0.0),
 )

@@ -15,7 +15,7 @@ import csv
 import numpy as np
 import pytest
 
-from compute.bodies.walls import breathing_damping, secant_bulk_modulus
+from compute.bodies.walls import MAX_EXPONENT, breathing_damping, secant_bulk_modulus, stage_bulk_modulus
 from compute.run import run
 from pre import single_particle
 
@@ -31,6 +31,43 @@ def test_secant_bulk_modulus_of_an_exponential_law():
     # critical damping 2 √(k m) of the mode: k = 4K, m = m_w + M/6
     assert breathing_damping(1.0, 0.5, 6.0, 2.0) == pytest.approx(2 * np.sqrt(2.0 * 3.0))
     assert breathing_damping(0.0, 0.5, 6.0, 2.0) == 0.0
+
+
+def _power_law_areas(p, k0: float, alpha: float) -> np.ndarray:
+    """Box areas under pressures ``p`` of a packing whose tangent modulus is K = k0 P^alpha
+    (d ln A = -dP / K, integrated exactly)."""
+    if alpha == 1.0:
+        return np.exp(-np.log(p) / k0)
+    return np.exp(-p ** (1.0 - alpha) / (k0 * (1.0 - alpha)))
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.5, 1.0, 1.5, 2.0])
+def test_stage_bulk_modulus_is_the_tangent_of_a_power_law(alpha):
+    """Log-spaced pressures (the loading programs'), K = 3 P^alpha: the estimate at the next
+    pressure is the exact tangent modulus there within the secant-against-tangent factor
+    c(r, α) / r^(α/2) ≤ 1.06 (r = √10), while the last secant alone is below it by r^(1.5 α)."""
+    p = 1e-3 * np.sqrt(10.0) ** np.arange(5)
+    nxt = p[-1] * np.sqrt(10.0)
+    exact = 3.0 * nxt ** alpha
+    estimate = stage_bulk_modulus(p, _power_law_areas(p, 3.0, alpha), nxt)
+    assert exact <= estimate <= 1.06 * exact
+    assert secant_bulk_modulus(p, _power_law_areas(p, 3.0, alpha)) < 1.06 * exact / np.sqrt(10.0) ** (1.5 * alpha)
+
+
+def test_stage_bulk_modulus_guards():
+    p = np.sqrt(10.0) ** np.arange(4)
+    steep = _power_law_areas(p, 3.0, 3.0)  # steeper than MAX_EXPONENT: extrapolated as P^MAX_EXPONENT
+    k_b = secant_bulk_modulus(p, steep)
+    expected = k_b * (10 * p[-1] / np.sqrt(p[-1] * p[-2])) ** MAX_EXPONENT
+    assert stage_bulk_modulus(p, steep, 10 * p[-1]) == pytest.approx(expected, rel=1e-12)
+    # secants 2 then 1 (softening): not extrapolated downwards, the last secant
+    q = np.array([1.0, 2.0, 4.0])
+    a = np.exp(-np.cumsum([0.0, (2.0 - 1.0) / 2.0, (4.0 - 2.0) / 1.0]))
+    assert stage_bulk_modulus(q, a, 8.0) == pytest.approx(1.0, rel=1e-12)
+    # from P = 0 (the initial box) there is one interval of positive pressures: the secant
+    q = np.array([0.0, 1e-3, 1e-2])
+    a = np.array([2.0, 1.9, 1.8])
+    assert stage_bulk_modulus(q, a, 0.1) == secant_bulk_modulus(q, a)
 
 
 def _stages(folder, ratio: float):
