@@ -65,15 +65,13 @@ def stage_table(run: Path) -> list[str]:
         m = wall_mass + r["phi"][-1] * area[-1] * rho / 6.0
         c = damping.get(s)
         k_used = (c / (2.0 * zeta_set)) ** 2 / (4.0 * m) if c and zeta_set else None
+        half, zeta, k_ring = "–", "–", "–"
         ring = ringing(r["time"], area)
-        if ring is None:
-            cells = ["–"] * 3
-        else:
-            half, zeta = ring
-            omega = np.pi / half / np.sqrt(max(1.0 - zeta**2, 1e-12))
-            cells = [f"{half:.3g}", f"{zeta:.2f}", f"{m * omega**2 / 4.0:.3g}"]
-        rows.append(f"| {run.name} | {s} | {r.size} | " + " | ".join(cells[:2]) +
-                    f" | {c if c else '–'} | {f'{k_used:.3g}' if k_used else '–'} | {cells[2]} |")
+        if ring is not None:
+            omega = np.pi / ring[0] / np.sqrt(max(1.0 - ring[1] ** 2, 1e-12))
+            half, zeta, k_ring = f"{ring[0]:.3g}", f"{ring[1]:.2f}", f"{m * omega**2 / 4.0:.3g}"
+        cells = [run.name, s, r.size, half, zeta, c or "–", f"{k_used:.3g}" if k_used else "–", k_ring]
+        rows.append("| " + " | ".join(str(x) for x in cells) + " |")
     return rows
 
 
