@@ -12,7 +12,9 @@ jammed rigid scene with the same soft disks, chosen by the same seed, meshed wit
 times in WORKDIR/dispatch.jsonl); post's measures then give φ, Z and P at every equilibrated
 stage, and the Platzer law is fitted to φ(P) as the study does. Written:
 benchmarks/results/OUTPUT.md (the table, and the largest difference of each variant from the
-base run) and OUTPUT.csv (every stage of every variant). Outputs stay in --workdir, one folder
+base run), OUTPUT.csv (every stage of every variant) and OUTPUT_fits.md (the study table's
+fitted numbers per variant: ξ, α, φ_max, P₀, the laws' errors; ``--fits-only`` writes it again
+from OUTPUT.csv alone). Outputs stay in --workdir, one folder
 per variant whatever ``--variants`` picks, so that runs are shared between outputs.
 
     W=studies/mixture_compaction/results/n1500_t3
@@ -90,23 +92,100 @@ def stages(out: Path) -> dict:
             "Z": np.array([r["Z"] for r in rows])}
 
 
+def fitted_numbers(P: np.ndarray, phi: np.ndarray, Z: np.ndarray, b: float) -> dict:
+    """The study table's fitted numbers of one run's equilibrated stages P, φ, Z (n,), φ₀ and Z₀
+    read at its first stage (the numerical error of the loaded stages alone): ξ, α of
+    Z − Z₀ = ξ (φ − φ₀)^α, Eq. 5's φ_max with them and ``b``, Platzer's φ_max and P₀, and both
+    laws' rms error in φ (post.compaction.law_errors); NaN where a fit fails."""
+    from post import fits
+    from post.compaction import law_errors
+
+    out = dict.fromkeys(FITTED, np.nan)
+    try:
+        co = fits.fit_coordination(phi, Z, phi[0], Z[0])
+        out["xi"], out["alpha"] = co.params["xi"], co.params["alpha"]
+        e5 = fits.fit_eq5(phi, P, b, out["xi"], out["alpha"], Z[0], phi[0])
+        out["eq5_phi_max"] = e5.params["phi_max"]
+        out["eq5_phi_rms"] = law_errors(e5.predict, phi, P, phi[0], e5.params["phi_max"])["phi_rms"]
+    except (ValueError, RuntimeError):
+        pass
+    try:
+        pl = fits.fit_platzer(phi, P, phi[0])
+        out["platzer_phi_max"], out["platzer_P0"] = pl.params["phi_max"], pl.params["P0"]
+        out["platzer_phi_rms"] = law_errors(pl.predict, phi, P, phi[0], pl.params["phi_max"])["phi_rms"]
+    except (ValueError, RuntimeError):
+        pass
+    return out
+
+
+FITTED = ("xi", "alpha", "eq5_phi_max", "platzer_phi_max", "platzer_P0", "eq5_phi_rms", "platzer_phi_rms")
+FITTED_HEADS = ("ξ", "α", "φ_max Eq. 5", "φ_max Platzer", "P₀/E", "Eq. 5 err φ rms", "Platzer err φ rms")
+
+
+def write_fits(curves: Path, b: float, output: str) -> str:
+    """OUTPUT_fits.md: per variant of the table ``curves`` (OUTPUT.csv), the fitted numbers
+    (:func:`fitted_numbers`, with Eq. 2's ``b``) and their differences from the base run; the
+    largest difference over the refining variants (finer h, contact tolerance, stage test, mesh,
+    slower walls) is the numerical error of each number."""
+    with open(curves, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    names = list(dict.fromkeys(r["variant"] for r in rows))
+    numbers = {}
+    for name in names:
+        mine = [r for r in rows if r["variant"] == name]
+        P, phi, Z = (np.array([float(r[k]) for r in mine]) for k in ("P_over_E", "phi", "Z"))
+        numbers[name] = fitted_numbers(P, phi, Z, b)
+    base = numbers["base"]
+    refining = [n for n in names if n.endswith("/ 2") or n.endswith("/ 10") or n.startswith("mesh") or n.endswith("/ 3")]
+    fmt = {"xi": "{:.2f}", "alpha": "{:.3f}", "platzer_P0": "{:.3f}"}
+    lines = [f"# The fitted numbers of {curves.name}'s variants", "",
+             f"`python benchmarks/numerical_error.py --fits-only --output {output} --b {b:g}`", "",
+             "φ₀, Z₀ at each variant's first stage; Eq. 5 with b = " + f"{b:g}" + " and the variant's own ξ, α. "
+             "Each cell: the value, and its difference from the base run.", "",
+             "| variant | " + " | ".join(FITTED_HEADS) + " |", "|---|" + "---|" * len(FITTED)]
+    for name in names:
+        cells = []
+        for k in FITTED:
+            v = numbers[name][k]
+            text = fmt.get(k, "{:.4f}").format(v)
+            cells.append(text if name == "base" else f"{text} ({v - base[k]:+.1e})")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    largest = {k: max(abs(numbers[n][k] - base[k]) for n in refining) for k in FITTED}
+    lines += ["", f"Largest difference over the refining variants ({', '.join(refining)}): "
+              + ", ".join(f"{h} {largest[k]:.1e}" for h, k in zip(FITTED_HEADS, FITTED)) + "."]
+    text = "\n".join(lines) + "\n"
+    (RESULTS / f"{output}_fits.md").write_text(text)
+    return text
+
+
 def main() -> None:
     from pre.scene import copy_scene
     from studies.dispatch import RunSpec, dispatch, run_times
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--run", type=Path, required=True, help="a study run folder (scene/ inside)")
-    ap.add_argument("--rigid", type=Path, required=True, help="the study's jammed rigid scene of that run")
-    ap.add_argument("--kappa", type=float, required=True, help="the study's κ of that run (as asked)")
-    ap.add_argument("--seed", type=int, required=True, help="the study's seed of that run")
+    ap.add_argument("--run", type=Path, help="a study run folder (scene/ inside)")
+    ap.add_argument("--rigid", type=Path, help="the study's jammed rigid scene of that run")
+    ap.add_argument("--kappa", type=float, help="the study's κ of that run (as asked)")
+    ap.add_argument("--seed", type=int, help="the study's seed of that run")
     ap.add_argument("--mesh-factor", type=int, default=4)
-    ap.add_argument("--workdir", type=Path, required=True)
+    ap.add_argument("--workdir", type=Path)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--output", required=True)
     ap.add_argument("--variants", nargs="+", metavar="NAME",
                     help="run and report only these variants (and the base run): names as in the table, "
                          "e.g. 'h × 2' (default: all)")
+    ap.add_argument("--fits-only", action="store_true",
+                    help="only write OUTPUT_fits.md from an existing OUTPUT.csv (no run)")
+    ap.add_argument("--b", type=float, default=None,
+                    help="Eq. 2's b for the fitted numbers (default: the single particle's, T3 × 92)")
     a = ap.parse_args()
+    b = a.b if a.b is not None else _study_b()
+    if a.fits_only:
+        print(write_fits(RESULTS / f"{a.output}.csv", b, a.output))
+        return
+    missing = [f"--{k.replace('_', '-')}" for k in ("run", "rigid", "kappa", "seed", "workdir") if getattr(a, k) is None]
+    if missing:
+        ap.error(f"the arguments {', '.join(missing)} are required (all but --output with --fits-only)")
     scene = a.run / "scene"
     for folder, option in ((scene, "--run RUN: RUN/scene"), (a.rigid, "--rigid")):
         if not (folder / "scene.toml").is_file():
@@ -133,6 +212,14 @@ def main() -> None:
     seconds = run_times(log_file)
     results = {name: stages(f.parent / "out") for name, f in folders.items()}
     write(results, seconds, a)
+    print(write_fits(RESULTS / f"{a.output}.csv", b, a.output))
+
+
+def _study_b() -> float:
+    """Eq. 2's b of the study's soft disk (T3 × 92) from the single particle's fits per mesh."""
+    from post.compaction import law_from_file
+
+    return law_from_file(RESULTS.parents[1] / "studies/single_particle/results/refinement_fits.csv", "T3", 92).b
 
 
 def write(results: dict, seconds: dict, a) -> None:
