@@ -32,6 +32,8 @@ from post import fits, rounding
 FIT_COLUMNS = ["law", "kappa", "mu", "parameter", "value", "stderr", "phi_min", "phi_max_fitted", "rms",
                "rms_relative"]
 ERROR_KEYS = ("phi_rms", "phi_max_abs", "P_rms_rel", "P_max_rel")
+# the numbers fitted to each seed alone, whose scatter between seeds Table 1 shows beside the pooled fits
+SEED_KEYS = ("xi", "alpha", "eq5_phi_max", "platzer_phi_max", "platzer_P0", "eq5_phi_rms", "platzer_phi_rms")
 
 
 @dataclass(frozen=True)
@@ -64,8 +66,10 @@ class Group:
     and Z0_no_rattlers averaged over the seeds (``*_std``: their scatter, NaN with one seed), the
     ones the fits use; ``phi0_prepared``, ``Z0_prepared`` and ``phi0_first_stage``,
     ``Z0_first_stage``: both readings, seed-averaged (NaN where the study has no prepared values);
-    platzer, coordination, eq5: post.fits results (None when a fit failed, see Compaction.notes); eq3, eq3_single (n,): the Eq. 3 predictions
-    of K/E; errors: the row of errors.csv."""
+    platzer, coordination, eq5: post.fits results (None when a fit failed, see Compaction.notes);
+    seed_std: the scatter between seeds of every fitted number (:data:`SEED_KEYS`), each seed's
+    points fitted alone; eq3, eq3_single (n,): the Eq. 3 predictions of K/E; errors: the row of
+    errors.csv."""
 
     kappa: float
     mu: float
@@ -88,7 +92,7 @@ class Group:
     platzer: fits.FitResult | None = None
     coordination: fits.FitResult | None = None
     eq5: fits.FitResult | None = None
-    phi_max_seed_std: dict = field(default_factory=dict)  # {"eq5": std, "platzer": std}
+    seed_std: dict = field(default_factory=dict)  # {SEED_KEYS item: scatter of the per-seed fits}, NaN with one seed
     eq3: np.ndarray | None = None
     eq3_single: np.ndarray | None = None
     errors: dict = field(default_factory=dict)
@@ -98,7 +102,8 @@ class Group:
 class Compaction:
     """The analysis of a study: ``groups`` by (κ, μ), ``points`` (rows of curves.csv),
     ``fit_rows`` (rows of fits.csv), the coordination law over all runs, the notes on what
-    could not be fitted, and ``phi0_from``: "prepared" or "first-stage", where φ₀, Z₀ come from."""
+    could not be fitted, ``phi0_from``: "prepared" or "first-stage", where φ₀, Z₀ come from, and
+    the scatter of ξ, α fitted over all runs of each seed alone (NaN with one seed)."""
 
     law: SingleParticleLaw
     z_column: str
@@ -108,6 +113,7 @@ class Compaction:
     coordination_all: fits.FitResult | None
     notes: list[str]
     phi0_from: str = "first-stage"
+    coordination_all_seed_std: dict = field(default_factory=dict)  # {"xi", "alpha": scatter of the per-seed fits}
 
     def table1(self, paper_phi0: dict | None = None, paper_Z0: dict | None = None) -> list[dict]:
         """Rows of table1.csv: φ₀, Z₀ (the study's Z column) and Z₀ without rattlers, with their seed
@@ -296,6 +302,15 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
     dZ = np.array([p["Z"] - p["Z0"] for p in points])
     glob = attempt("coordination law over all runs", lambda: fits.fit_coordination(1.0 + dphi, dZ, 1.0, 0.0))
     fit_rows += [_fit_row("coordination", "all", "all", n, glob, shift=1.0) for n in ("xi", "alpha")]
+    seeds = np.array([p["seed"] for p in points])
+    per_seed = [attempt(f"coordination law over all runs of seed {s}",
+                        lambda: fits.fit_coordination(1.0 + dphi[seeds == s], dZ[seeds == s], 1.0, 0.0))
+                for s in (sorted(set(seeds.tolist())) if len(set(seeds.tolist())) > 1 else [])]
+    glob_std = {}
+    for n in ("xi", "alpha"):
+        v = [f.params[n] for f in per_seed if f is not None]
+        glob_std[n] = float(np.std(v, ddof=1)) if len(v) > 1 else np.nan
+        fit_rows.append(_fit_row("per seed", "all", "all", f"{n} std", value=glob_std[n]))
 
     groups = {}
     for kappa, mu in sorted({(p["kappa"], p["mu"]) for p in points}):
@@ -315,19 +330,10 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
         xi, alpha = g.xi_alpha
         g.eq5 = attempt(f"Eq. 5 ({tag})", lambda: fits.fit_eq5(g.phi, g.P, law.b, xi, alpha, g.Z0, g.phi0))
         fit_rows.append(_fit_row("eq5", kappa, mu, "phi_max", g.eq5))
-        for key in ("eq5", "platzer"):  # scatter between seeds: phi_max fitted to each seed alone
-            values = []
-            for seed in g.seeds if len(g.seeds) > 1 else []:
-                mine = [p for p in sel if p["seed"] == seed]
-                x, y = np.array([p["phi"] for p in mine]), np.array([p["P_over_E"] for p in mine])
-                f0, z0 = mine[0]["phi0"], mine[0]["Z0"]
-                fit = attempt(f"{key} ({tag}, seed {seed})",
-                              lambda: fits.fit_eq5(x, y, law.b, xi, alpha, z0, f0) if key == "eq5"
-                              else fits.fit_platzer(x, y, f0))
-                if fit is not None:
-                    values.append(fit.params["phi_max"])
-            g.phi_max_seed_std[key] = float(np.std(values, ddof=1)) if len(values) > 1 else np.nan
-            fit_rows.append(_fit_row(f"{key} per seed", kappa, mu, "phi_max std", value=g.phi_max_seed_std[key]))
+        per_seed = [_seed_fits([p for p in sel if p["seed"] == seed], law, xi, alpha, f"{tag}, seed {seed}", attempt)
+                    for seed in (g.seeds if len(g.seeds) > 1 else [])]
+        g.seed_std = _scatter(per_seed)
+        fit_rows += [_fit_row("per seed", kappa, mu, f"{k} std", value=v) for k, v in g.seed_std.items()]
         _errors_and_eq3(g, law)
         for p, e5, e3, e3s in zip(sel, g.eq5.predict(g.phi) if g.eq5 else np.full(len(sel), np.nan), g.eq3,
                                   g.eq3_single):
@@ -336,7 +342,38 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
         groups[(kappa, mu)] = g
     fit_rows.append(_fit_row("single_particle (Eq. 2)", "all", "all", "b", value=law.b))
     fit_rows.append(_fit_row("single_particle (Eq. 2)", "all", "all", "phi_p_max", value=law.phi_p_max))
-    return Compaction(law, z_column, groups, points, fit_rows, glob, notes, phi0_from)
+    return Compaction(law, z_column, groups, points, fit_rows, glob, notes, phi0_from, glob_std)
+
+
+def _seed_fits(mine: list[dict], law: SingleParticleLaw, xi: float, alpha: float, tag: str, attempt) -> dict:
+    """{SEED_KEYS item: value} of one seed's points ``mine`` fitted alone, as the group's are
+    (Eq. 5 with the group's ``xi``, ``alpha``); NaN where a fit failed (``attempt`` notes it)."""
+    x, y = np.array([p["phi"] for p in mine]), np.array([p["P_over_E"] for p in mine])
+    f0, z0 = mine[0]["phi0"], mine[0]["Z0"]
+    dZ = np.array([p["Z"] for p in mine]) - z0
+    out = dict.fromkeys(SEED_KEYS, np.nan)
+    co = attempt(f"coordination ({tag})", lambda: fits.fit_coordination(1.0 + x - f0, dZ, 1.0, 0.0))
+    e5 = attempt(f"Eq. 5 ({tag})", lambda: fits.fit_eq5(x, y, law.b, xi, alpha, z0, f0))
+    pl = attempt(f"Platzer ({tag})", lambda: fits.fit_platzer(x, y, f0))
+    if co:
+        out["xi"], out["alpha"] = co.params["xi"], co.params["alpha"]
+    for key, fit in (("eq5", e5), ("platzer", pl)):
+        if fit:
+            out[f"{key}_phi_max"] = fit.params["phi_max"]
+            out[f"{key}_phi_rms"] = law_errors(fit.predict, x, y, f0, fit.params["phi_max"])["phi_rms"]
+    if pl:
+        out["platzer_P0"] = pl.params["P0"]
+    return out
+
+
+def _scatter(per_seed: list[dict]) -> dict:
+    """{key: sample standard deviation over the seeds' values} (NaN below two finite values)."""
+    out = {}
+    for key in SEED_KEYS:
+        v = np.array([d[key] for d in per_seed], float)
+        v = v[np.isfinite(v)]
+        out[key] = float(np.std(v, ddof=1)) if v.size > 1 else np.nan
+    return out
 
 
 def _group(kappa: float, mu: float, sel: list[dict]) -> Group:
@@ -417,20 +454,26 @@ def summary_markdown(study: dict, result: Compaction, reference: Reference, time
                           if result.phi0_from == "prepared" else
                           "the first equilibrated stage's" + (" (table1.csv also has the prepared sample's)" if any(
                               math.isfinite(g.phi0_prepared) for g in result.groups.values()) else "")) + ".", ""]
-    lines += ["| κ | μ | seeds | φ₀ ± seed std (paper) | Z₀ ± seed std (paper) | Z₀ without rattlers | ξ, α (group) | "
-              "φ_max Eq. 5 (± seed std) | φ_max Platzer (± seed std) | P₀/E | Eq. 5 err φ rms / max | "
+    lines += ["With several seeds every ± is the scatter between seeds (sample standard deviation, each seed's "
+              "points fitted alone); with one seed ξ, α and P₀ carry their fit's standard error.", "",
+              "| κ | μ | seeds | φ₀ (paper) | Z₀ (paper) | Z₀ without rattlers | ξ, α (group) | "
+              "φ_max Eq. 5 | φ_max Platzer | P₀/E | Eq. 5 err φ rms / max | "
               "Platzer err φ rms / max | Eq. 3 err K rms (φ_max(κ) / φ_p,max) | run time s |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
-    def fitted(fit, name):
-        return rounding.with_error(fit.params[name], fit.stderr.get(name)) if fit else rounding.MISSING
+    def fitted(fit, name, scatter=None, otherwise=rounding.significant, stderr=True):
+        """The pooled fit's value ± the seed scatter, or ± its standard error (``stderr``) without one."""
+        if not fit:
+            return rounding.MISSING
+        error = scatter if scatter is not None and math.isfinite(scatter) else (fit.stderr.get(name) if stderr else None)
+        return rounding.with_error(fit.params[name], error, otherwise)
 
-    def phi_max(fit, key, g):
-        return rounding.with_error(fit.params["phi_max"], g.phi_max_seed_std.get(key), rounding.phi) if fit \
-            else rounding.MISSING
+    def error(value, scatter):
+        return (rounding.significant(value, 2) + (f" ± {rounding.significant(scatter, 1)}"
+                                                  if scatter is not None and math.isfinite(scatter) else ""))
 
     for (kappa, mu), g in sorted(groups.items()):
-        e = g.errors
+        e, sd = g.errors, g.seed_std
         co, e5, pl = g.coordination, g.eq5, g.platzer
         t = sum(times.get(r["name"], 0.0) for r in study["runs"] if r["kappa"] == kappa and r["mu"] == mu)
         lines.append(
@@ -438,15 +481,18 @@ def summary_markdown(study: dict, result: Compaction, reference: Reference, time
             f"({reference.phi0.get(mu, {}).get(kappa, '–')}) | "
             f"{rounding.with_error(g.Z0, g.Z0_std, rounding.coordination)} ({reference.Z0.get(mu, {}).get(kappa, '–')}) | "
             f"{rounding.with_error(g.Z0_no_rattlers, g.Z0_no_rattlers_std, rounding.coordination)} | "
-            + (f"{fitted(co, 'xi')}, {fitted(co, 'alpha')}" if co else rounding.MISSING) + " | "
-            + phi_max(e5, "eq5", g) + " | " + phi_max(pl, "platzer", g) + " | " + fitted(pl, "P0")
-            + f" | {rounding.significant(e['eq5_phi_rms'], 2)} / {rounding.significant(e['eq5_phi_max_abs'], 2)} | "
-              f"{rounding.significant(e['platzer_phi_rms'], 2)} / {rounding.significant(e['platzer_phi_max_abs'], 2)} | "
+            + (f"{fitted(co, 'xi', sd.get('xi'))}, {fitted(co, 'alpha', sd.get('alpha'))}" if co else rounding.MISSING)
+            + f" | {fitted(e5, 'phi_max', sd.get('eq5_phi_max'), rounding.phi, False)} | "
+              f"{fitted(pl, 'phi_max', sd.get('platzer_phi_max'), rounding.phi, False)} | "
+              f"{fitted(pl, 'P0', sd.get('platzer_P0'))} | "
+              f"{error(e['eq5_phi_rms'], sd.get('eq5_phi_rms'))} / {rounding.significant(e['eq5_phi_max_abs'], 2)} | "
+              f"{error(e['platzer_phi_rms'], sd.get('platzer_phi_rms'))} / "
+              f"{rounding.significant(e['platzer_phi_max_abs'], 2)} | "
               f"{rounding.significant(e['eq3_rms_rel'], 2)} / {rounding.significant(e['eq3_single_rms_rel'], 2)} "
               f"| {rounding.duration(t)} |")
     lines += ["", "| over all runs | toolkit | paper |", "|---|---|---|",
-              f"| ξ | {fitted(glob, 'xi')} | {reference.xi} |",
-              f"| α | {fitted(glob, 'alpha')} | {reference.alpha} |",
+              f"| ξ | {fitted(glob, 'xi', result.coordination_all_seed_std.get('xi'))} | {reference.xi} |",
+              f"| α | {fitted(glob, 'alpha', result.coordination_all_seed_std.get('alpha'))} | {reference.alpha} |",
               f"| b | {rounding.significant(law.b)}{' (the paper’s value, not measured)' if law.paper_default else ''} "
               f"| {reference.b} |", ""]
     lines.append(f"Compute wall time summed over runs: {rounding.duration(sum(times.values()))} s; "

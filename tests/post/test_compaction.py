@@ -50,7 +50,33 @@ def test_laws_recovered(result):
         # Eq. 5 pooled over two seeds of different phi0 uses the mean phi0: phi_max close, not exact;
         # each seed alone recovers it exactly, so the seed scatter of phi_max is ~0
         assert g.eq5.params["phi_max"] == pytest.approx(PHI_MAX[kappa], abs=5e-3)
-        assert g.phi_max_seed_std["eq5"] == pytest.approx(0.0, abs=1e-8)
+        assert g.seed_std["eq5_phi_max"] == pytest.approx(0.0, abs=1e-8)
+
+
+def test_seed_scatter_of_every_fitted_number(study):
+    """Seeds whose Z follow the coordination law with ξ = 5.0 and 5.4: each seed fitted alone gives
+    its own ξ exactly, so the scatter is that of the two values, per group and over all runs; the
+    seeds' φ(P) follow one Eq. 5, so φ_max and the law errors scatter by nothing."""
+    xis = {1: 5.0, 2: 5.4}
+    tables = {}
+    for r in study["runs"]:
+        rows = _rows(r["kappa"], r["seed"])
+        phi0 = rows[0]["phi"]
+        for row in rows:
+            row["Z"] = float(models.coordination_law(np.array([row["phi"]]), xis[r["seed"]], ALPHA, phi0, Z0)[0])
+        tables[r["name"]] = rows
+    result = compaction.analyse(study, tables, LAW, "Z", "all", (XI, ALPHA))
+    expected = 0.4 / np.sqrt(2)
+    assert result.coordination_all_seed_std["xi"] == pytest.approx(expected, rel=1e-6)
+    assert result.coordination_all_seed_std["alpha"] == pytest.approx(0.0, abs=1e-6)
+    for g in result.groups.values():
+        assert g.seed_std["xi"] == pytest.approx(expected, rel=1e-6)
+        assert g.seed_std["alpha"] == pytest.approx(0.0, abs=1e-6)
+        assert g.seed_std["platzer_phi_max"] >= 0.0 and np.isfinite(g.seed_std["platzer_P0"])
+    rows = {(r["kappa"], r["parameter"]): r["value"] for r in result.fit_rows if r["law"] == "per seed"}
+    assert rows[("all", "xi std")] == pytest.approx(expected, rel=1e-6) and (0.5, "eq5_phi_rms std") in rows
+    text = compaction.summary_markdown(study, result, Reference({}, {}, XI, ALPHA, B))
+    assert "| ξ | 5.2 ± 0.3 |" in text  # pooled ξ (the two seeds' 5.0 and 5.4) ± their scatter 0.28
 
 
 def test_table1_and_fit_rows(result):
