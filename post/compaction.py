@@ -103,7 +103,8 @@ class Compaction:
     """The analysis of a study: ``groups`` by (κ, μ), ``points`` (rows of curves.csv),
     ``fit_rows`` (rows of fits.csv), the coordination law over all runs, the notes on what
     could not be fitted, ``phi0_from``: "prepared" or "first-stage", where φ₀, Z₀ come from, and
-    the scatter of ξ, α fitted over all runs of each seed alone (NaN with one seed)."""
+    the scatter of ξ, α fitted over all runs of each seed alone (NaN with one seed, or when the
+    (κ, μ) do not all have the same seeds)."""
 
     law: SingleParticleLaw
     z_column: str
@@ -303,9 +304,13 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
     glob = attempt("coordination law over all runs", lambda: fits.fit_coordination(1.0 + dphi, dZ, 1.0, 0.0))
     fit_rows += [_fit_row("coordination", "all", "all", n, glob, shift=1.0) for n in ("xi", "alpha")]
     seeds = np.array([p["seed"] for p in points])
+    # over all runs, per seed: only when every (κ, μ) has the same seeds (else each seed's fit
+    # would cover other groups, and its scatter would mix the groups' differences in)
+    same = len({frozenset(p["seed"] for p in points if (p["kappa"], p["mu"]) == km)
+                for km in {(p["kappa"], p["mu"]) for p in points}}) == 1
     per_seed = [attempt(f"coordination law over all runs of seed {s}",
                         lambda: fits.fit_coordination(1.0 + dphi[seeds == s], dZ[seeds == s], 1.0, 0.0))
-                for s in (sorted(set(seeds.tolist())) if len(set(seeds.tolist())) > 1 else [])]
+                for s in (sorted(set(seeds.tolist())) if same and len(set(seeds.tolist())) > 1 else [])]
     glob_std = {}
     for n in ("xi", "alpha"):
         v = [f.params[n] for f in per_seed if f is not None]

@@ -77,6 +77,12 @@ def test_seed_scatter_of_every_fitted_number(study):
     assert rows[("all", "xi std")] == pytest.approx(expected, rel=1e-6) and (0.5, "eq5_phi_rms std") in rows
     text = compaction.summary_markdown(study, result, Reference({}, {}, XI, ALPHA, B))
     assert "| ξ | 5.2 ± 0.3 |" in text  # pooled ξ (the two seeds' 5.0 and 5.4) ± their scatter 0.28
+    # a (κ, μ) with one seed only: a seed's fit over all runs would mix groups, so no scatter there
+    partial = {**study, "runs": [r for r in study["runs"] if not (r["kappa"] == 1.0 and r["seed"] == 2)]}
+    uneven = compaction.analyse(partial, {r["name"]: tables[r["name"]] for r in partial["runs"]}, LAW, "Z", "all",
+                                (XI, ALPHA))
+    assert np.isnan(uneven.coordination_all_seed_std["xi"])
+    assert uneven.groups[(0.5, 0.2)].seed_std["xi"] == pytest.approx(expected, rel=1e-6)
 
 
 def test_table1_and_fit_rows(result):
