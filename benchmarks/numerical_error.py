@@ -92,41 +92,18 @@ def stages(out: Path) -> dict:
             "Z": np.array([r["Z"] for r in rows])}
 
 
-def fitted_numbers(P: np.ndarray, phi: np.ndarray, Z: np.ndarray, b: float) -> dict:
-    """The study table's fitted numbers of one run's equilibrated stages P, φ, Z (n,), φ₀ and Z₀
-    read at its first stage (the numerical error of the loaded stages alone): ξ, α of
-    Z − Z₀ = ξ (φ − φ₀)^α, Eq. 5's φ_max with them and ``b``, Platzer's φ_max and P₀, and both
-    laws' rms error in φ (post.compaction.law_errors); NaN where a fit fails."""
-    from post import fits
-    from post.compaction import law_errors
-
-    out = dict.fromkeys(FITTED, np.nan)
-    try:
-        co = fits.fit_coordination(phi, Z, phi[0], Z[0])
-        out["xi"], out["alpha"] = co.params["xi"], co.params["alpha"]
-        e5 = fits.fit_eq5(phi, P, b, out["xi"], out["alpha"], Z[0], phi[0])
-        out["eq5_phi_max"] = e5.params["phi_max"]
-        out["eq5_phi_rms"] = law_errors(e5.predict, phi, P, phi[0], e5.params["phi_max"])["phi_rms"]
-    except (ValueError, RuntimeError):
-        pass
-    try:
-        pl = fits.fit_platzer(phi, P, phi[0])
-        out["platzer_phi_max"], out["platzer_P0"] = pl.params["phi_max"], pl.params["P0"]
-        out["platzer_phi_rms"] = law_errors(pl.predict, phi, P, phi[0], pl.params["phi_max"])["phi_rms"]
-    except (ValueError, RuntimeError):
-        pass
-    return out
-
-
-FITTED = ("xi", "alpha", "eq5_phi_max", "platzer_phi_max", "platzer_P0", "eq5_phi_rms", "platzer_phi_rms")
+# the study table's fitted numbers (post.compaction.SEED_KEYS, in that order), as headed in the table
 FITTED_HEADS = ("ξ", "α", "φ_max Eq. 5", "φ_max Platzer", "P₀/E", "Eq. 5 err φ rms", "Platzer err φ rms")
 
 
 def write_fits(curves: Path, b: float, output: str) -> str:
     """OUTPUT_fits.md: per variant of the table ``curves`` (OUTPUT.csv), the fitted numbers
-    (:func:`fitted_numbers`, with Eq. 2's ``b``) and their differences from the base run; the
+    (post.compaction.run_fits, with Eq. 2's ``b``) and their differences from the base run; the
     largest difference over the refining variants (finer h, contact tolerance, stage test, mesh,
-    slower walls) is the numerical error of each number."""
+    slower walls) is the numerical error of each number. φ₀, Z₀ are read at each variant's first
+    stage (the error of the loaded stages alone), Eq. 5 with the variant's own ξ, α."""
+    from post.compaction import SEED_KEYS as FITTED, run_fits
+
     with open(curves, newline="") as fh:
         rows = list(csv.DictReader(fh))
     names = list(dict.fromkeys(r["variant"] for r in rows))
@@ -134,9 +111,9 @@ def write_fits(curves: Path, b: float, output: str) -> str:
     for name in names:
         mine = [r for r in rows if r["variant"] == name]
         P, phi, Z = (np.array([float(r[k]) for r in mine]) for k in ("P_over_E", "phi", "Z"))
-        numbers[name] = fitted_numbers(P, phi, Z, b)
+        numbers[name] = run_fits(phi, P, Z, phi[0], Z[0], b)
     base = numbers["base"]
-    refining = [n for n in names if n.endswith("/ 2") or n.endswith("/ 10") or n.startswith("mesh") or n.endswith("/ 3")]
+    refining = [n for n in names if " / " in n or n.startswith("mesh")]  # the finer or slower settings
     fmt = {"xi": "{:.2f}", "alpha": "{:.3f}", "platzer_P0": "{:.3f}"}
     lines = [f"# The fitted numbers of {curves.name}'s variants", "",
              f"`python benchmarks/numerical_error.py --fits-only --output {output} --b {b:g}`", "",
@@ -181,6 +158,8 @@ def main() -> None:
     a = ap.parse_args()
     b = a.b if a.b is not None else _study_b()
     if a.fits_only:
+        if not (RESULTS / f"{a.output}.csv").is_file():
+            ap.error(f"--fits-only: {RESULTS / a.output}.csv not found (the variants' table that a run writes)")
         print(write_fits(RESULTS / f"{a.output}.csv", b, a.output))
         return
     missing = [f"--{k.replace('_', '-')}" for k in ("run", "rigid", "kappa", "seed", "workdir") if getattr(a, k) is None]

@@ -306,16 +306,15 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
     seeds = np.array([p["seed"] for p in points])
     # over all runs, per seed: only when every (κ, μ) has the same seeds (else each seed's fit
     # would cover other groups, and its scatter would mix the groups' differences in)
-    same = len({frozenset(p["seed"] for p in points if (p["kappa"], p["mu"]) == km)
-                for km in {(p["kappa"], p["mu"]) for p in points}}) == 1
+    group_seeds: dict = {}
+    for p in points:
+        group_seeds.setdefault((p["kappa"], p["mu"]), set()).add(p["seed"])
+    same = len({frozenset(v) for v in group_seeds.values()}) == 1
     per_seed = [attempt(f"coordination law over all runs of seed {s}",
                         lambda: fits.fit_coordination(1.0 + dphi[seeds == s], dZ[seeds == s], 1.0, 0.0))
                 for s in (sorted(set(seeds.tolist())) if same and len(set(seeds.tolist())) > 1 else [])]
-    glob_std = {}
-    for n in ("xi", "alpha"):
-        v = [f.params[n] for f in per_seed if f is not None]
-        glob_std[n] = float(np.std(v, ddof=1)) if len(v) > 1 else np.nan
-        fit_rows.append(_fit_row("per seed", "all", "all", f"{n} std", value=glob_std[n]))
+    glob_std = {n: _sample_std([f.params[n] for f in per_seed if f is not None]) for n in ("xi", "alpha")}
+    fit_rows += [_fit_row("per seed", "all", "all", f"{n} std", value=v) for n, v in glob_std.items()]
 
     groups = {}
     for kappa, mu in sorted({(p["kappa"], p["mu"]) for p in points}):
@@ -335,9 +334,13 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
         xi, alpha = g.xi_alpha
         g.eq5 = attempt(f"Eq. 5 ({tag})", lambda: fits.fit_eq5(g.phi, g.P, law.b, xi, alpha, g.Z0, g.phi0))
         fit_rows.append(_fit_row("eq5", kappa, mu, "phi_max", g.eq5))
-        per_seed = [_seed_fits([p for p in sel if p["seed"] == seed], law, xi, alpha, f"{tag}, seed {seed}", attempt)
-                    for seed in (g.seeds if len(g.seeds) > 1 else [])]
-        g.seed_std = _scatter(per_seed)
+        per_seed = []
+        for seed in g.seeds if len(g.seeds) > 1 else []:
+            mine = [p for p in sel if p["seed"] == seed]
+            x, y, z = (np.array([p[k] for p in mine]) for k in ("phi", "P_over_E", "Z"))
+            per_seed.append(run_fits(x, y, z, mine[0]["phi0"], mine[0]["Z0"], law.b, (xi, alpha),
+                                     lambda what, f, s=seed: attempt(f"{what} ({tag}, seed {s})", f)))
+        g.seed_std = {k: _sample_std([d[k] for d in per_seed]) for k in SEED_KEYS}
         fit_rows += [_fit_row("per seed", kappa, mu, f"{k} std", value=v) for k, v in g.seed_std.items()]
         _errors_and_eq3(g, law)
         for p, e5, e3, e3s in zip(sel, g.eq5.predict(g.phi) if g.eq5 else np.full(len(sel), np.nan), g.eq3,
@@ -350,35 +353,43 @@ def analyse(study: dict, tables: dict, law: SingleParticleLaw, z_column: str = "
     return Compaction(law, z_column, groups, points, fit_rows, glob, notes, phi0_from, glob_std)
 
 
-def _seed_fits(mine: list[dict], law: SingleParticleLaw, xi: float, alpha: float, tag: str, attempt) -> dict:
-    """{SEED_KEYS item: value} of one seed's points ``mine`` fitted alone, as the group's are
-    (Eq. 5 with the group's ``xi``, ``alpha``); NaN where a fit failed (``attempt`` notes it)."""
-    x, y = np.array([p["phi"] for p in mine]), np.array([p["P_over_E"] for p in mine])
-    f0, z0 = mine[0]["phi0"], mine[0]["Z0"]
-    dZ = np.array([p["Z"] for p in mine]) - z0
+def run_fits(phi: np.ndarray, P: np.ndarray, Z: np.ndarray, phi0: float, Z0: float, b: float,
+             xi_alpha: tuple[float, float] | None = None, attempt=None) -> dict:
+    """{SEED_KEYS item: value} of one run's (or one seed's) points φ, P/E, Z (n,) fitted alone
+    from φ₀, Z₀: ξ, α of Z − Z₀ = ξ (φ − φ₀)^α; Eq. 5's φ_max with Eq. 2's ``b`` and
+    ``xi_alpha`` (default: the ξ, α just fitted); Platzer's φ_max and P₀; both laws' rms error in
+    φ (:func:`law_errors`). NaN where a fit failed; ``attempt(what, f)`` runs each fit and returns
+    None on failure (default: quietly)."""
+    attempt = attempt or _quietly
     out = dict.fromkeys(SEED_KEYS, np.nan)
-    co = attempt(f"coordination ({tag})", lambda: fits.fit_coordination(1.0 + x - f0, dZ, 1.0, 0.0))
-    e5 = attempt(f"Eq. 5 ({tag})", lambda: fits.fit_eq5(x, y, law.b, xi, alpha, z0, f0))
-    pl = attempt(f"Platzer ({tag})", lambda: fits.fit_platzer(x, y, f0))
+    co = attempt("coordination", lambda: fits.fit_coordination(1.0 + phi - phi0, Z - Z0, 1.0, 0.0))
     if co:
         out["xi"], out["alpha"] = co.params["xi"], co.params["alpha"]
+    xi, alpha = xi_alpha or (out["xi"], out["alpha"])
+    e5 = attempt("Eq. 5", lambda: fits.fit_eq5(phi, P, b, xi, alpha, Z0, phi0)) if np.isfinite(xi) else None
+    pl = attempt("Platzer", lambda: fits.fit_platzer(phi, P, phi0))
     for key, fit in (("eq5", e5), ("platzer", pl)):
         if fit:
             out[f"{key}_phi_max"] = fit.params["phi_max"]
-            out[f"{key}_phi_rms"] = law_errors(fit.predict, x, y, f0, fit.params["phi_max"])["phi_rms"]
+            out[f"{key}_phi_rms"] = law_errors(fit.predict, phi, P, phi0, fit.params["phi_max"])["phi_rms"]
     if pl:
         out["platzer_P0"] = pl.params["P0"]
     return out
 
 
-def _scatter(per_seed: list[dict]) -> dict:
-    """{key: sample standard deviation over the seeds' values} (NaN below two finite values)."""
-    out = {}
-    for key in SEED_KEYS:
-        v = np.array([d[key] for d in per_seed], float)
-        v = v[np.isfinite(v)]
-        out[key] = float(np.std(v, ddof=1)) if v.size > 1 else np.nan
-    return out
+def _quietly(what: str, f):
+    """f(), or None where the fit fails."""
+    try:
+        return f()
+    except (ValueError, RuntimeError, TypeError):
+        return None
+
+
+def _sample_std(values) -> float:
+    """The sample standard deviation of the finite ``values`` (NaN below two)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(np.std(v, ddof=1)) if v.size > 1 else np.nan
 
 
 def _group(kappa: float, mu: float, sel: list[dict]) -> Group:
