@@ -22,6 +22,12 @@ from compute.contact.rows import ContactRows, generalised_impulse
 from compute.contact.residual import natural_map_error, velocity_error
 
 
+def gap_term(gap: np.ndarray, un_minus: np.ndarray, h: float, theta: float) -> np.ndarray:
+    """g̃ / (h θ) (nc,) of gaps ``gap`` and normal velocities u_n⁻ ``un_minus`` (nc,) at the step's
+    start: g̃ = g + h (1 − θ) u_n⁻, the end-of-step gap predicted without the step's own motion."""
+    return (gap + h * (1.0 - theta) * un_minus) / (h * theta)
+
+
 @dataclass
 class ContactProblem:
     """``dof``, ``hn``, ``ht`` (nc, MAX_DOFS) sparse rows of H over the packed dofs of
@@ -46,9 +52,8 @@ class ContactProblem:
               h: float, theta: float) -> "ContactProblem":
         """The problem of ``contacts`` (rows at q_n, impulses = warm start) for velocities v⁻ (n_dofs,)."""
         un_minus = np.sum(contacts.hn * np.where(contacts.dof >= 0, v_minus[contacts.dof], 0.0), axis=1)
-        gap_term = (contacts.gap + h * (1.0 - theta) * un_minus) / (h * theta)
-        return cls.of_rows(contacts.dof, contacts.hn, contacts.ht, compliance, v_free, gap_term, contacts.mu,
-                           contacts.impulse, h * theta)
+        return cls.of_rows(contacts.dof, contacts.hn, contacts.ht, compliance, v_free,
+                           gap_term(contacts.gap, un_minus, h, theta), contacts.mu, contacts.impulse, h * theta)
 
     @classmethod
     def of_rows(cls, dof, hn, ht, compliance: Compliance, v_free, gap_term, mu, impulse,
@@ -62,6 +67,15 @@ class ContactProblem:
 
     def __len__(self) -> int:
         return len(self.gap_term)
+
+    def set_rows(self, rows: np.ndarray, hn: np.ndarray, ht: np.ndarray, gap_term: np.ndarray) -> None:
+        """Replace the rows ``rows`` (k,) by ``hn``, ``ht`` (k, MAX_DOFS) over the same dofs and
+        their gap terms (k,); their Delassus blocks are recomputed
+        (compute.contact.end_of_step)."""
+        self.hn[rows], self.ht[rows], self.gap_term[rows] = hn, ht, gap_term
+        W = np.empty((len(rows), 2, 2))
+        delassus_blocks(self.dof[rows], hn, ht, *self.compliance.arrays(), W)
+        self.W[rows] = W
 
     def restricted(self, rows: np.ndarray) -> "ContactProblem":
         """The problem of the contacts ``rows`` (k,) alone, their impulses copied; it shares

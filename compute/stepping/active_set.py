@@ -63,27 +63,29 @@ ITERATIONS = 20  # of one attempt before the fixed-point loop takes over
 SHORT_STEP, SHORT_STEPS = 0.25, 3  # that many consecutive steps shorter than that: stalled, taken over
 
 
-def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int, misses_fail: bool = True):
+def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int, misses_fail: bool = True,
+               end_rows=None):
     """End-of-step velocities, solve report and the attempt's work, as newton.solve_step (same
     arguments): by the active-set Newton (module docstring), else by newton.solve_step on the
     same step records (its work then counts both, and one fallback)."""
     warm = contacts.impulse.copy()
     step.use_indefinite(True)
     try:
-        return _active_set_newton(step, contacts, v_minus, solver, tol, min(ITERATIONS, max_iterations))
+        return _active_set_newton(step, contacts, v_minus, solver, tol, min(ITERATIONS, max_iterations), end_rows)
     except StepFailure as exc:
         tried = spent(exc) + StepStats(fallbacks=1)
     contacts.impulse[:] = warm
     step.use_indefinite(False)
     try:
-        v, report, work = newton.solve_step(step, contacts, v_minus, solver, tol, max_iterations, misses_fail)
+        v, report, work = newton.solve_step(step, contacts, v_minus, solver, tol, max_iterations, misses_fail,
+                                            end_rows)
     except StepFailure as exc:
         carrying(exc, tried + spent(exc))
         raise
     return v, report, tried + work
 
 
-def _active_set_newton(step, contacts, v_minus, solver, tol, max_iterations):
+def _active_set_newton(step, contacts, v_minus, solver, tol, max_iterations, end_rows=None):
     """The iterations (module docstring): velocities, solve report and work (one dense solve on
     the contacts per iteration, counted as a sweep)."""
     its = backtracks = 0
@@ -103,6 +105,8 @@ def _active_set_newton(step, contacts, v_minus, solver, tol, max_iterations):
                 step.free_velocity(v, v_free, exact=True)
             kept = newton.contact_problem(step, contacts, soft_dofs, v_free, v_minus, kept)
             problem = kept[0]
+            if end_rows is not None and it == newton.RELINEARISED_AT:
+                end_rows.relinearise(contacts, problem, v)
             if it == 1:  # |W_ii| of the first iterate: the merit's scale for the whole step
                 scale = np.maximum(np.abs(problem.W[:, 0, 0]), 1e-300)
             r_old = r.copy()

@@ -6,7 +6,9 @@ With h the time step and θ ∈ [1/2, 1]:
     q⁺ = q⁻ + h ((1 - θ) v⁻ + θ v⁺)                (θ-method on positions)
     r from the contact solver: Signorini on g̃ + hθ u_n⁺, Coulomb on u_t⁺ (compute.contact.problem)
 
-1. detection (Verlet lists, rebuilt past the skin) and narrow phase at q_n: rows of H, gaps;
+1. detection (Verlet lists, rebuilt past the skin) and narrow phase at q_n: rows of H, gaps
+   (the segment–disk rows are made again at the end-of-step positions of the first Newton
+   iterate, compute.contact.end_of_step);
 2. every body group prepares the step (loads, x_n);
 3. rigid disks and walls only: one contact solve with the diagonal compliance; with soft bodies,
    the Newton iterations of the step strategy the scene names (:mod:`compute.stepping.strategies`:
@@ -28,6 +30,7 @@ import numpy as np
 
 from compute.bodies import Load
 from compute.contact import detection
+from compute.contact.end_of_step import EndOfStepSegmentRows
 from compute.contact.rows import ContactRows, generalised_impulse
 from compute.errors import SimulationError, StepFailure
 from compute import solvers
@@ -131,7 +134,9 @@ class Stepper:
         step = self.groups.begin_step(state.q, state.v, h, th, load)
         # linear groups only: one contact solve is exact
         tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if step.iterates else (np.inf, 1)
-        v, report, work = self.strategy(step, contacts, state.v, self.solver, tol, max_it, misses_fail)
+        start_penetration = float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0
+        end_rows = EndOfStepSegmentRows.of_step(m, state, contacts, h, th) if step.iterates else None
+        v, report, work = self.strategy(step, contacts, state.v, self.solver, tol, max_it, misses_fail, end_rows)
         if not np.all(np.isfinite(v)):
             raise carrying(StepFailure(f"non-finite velocities after the contact solve (contact residual "
                                        f"{report.residual:.3g} after {report.iterations} sweeps)"), work)
@@ -142,5 +147,5 @@ class Stepper:
         new = replace(state, q=state.q + h * ((1.0 - th) * state.v + th * v), v=v, time=state.time + h,
                       step=state.step + 1)
         return new, StepReport(report.iterations, report.residual, int(np.count_nonzero(contacts.impulse[:, 0] > 0.0)),
-                               float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0, contacts,
+                               start_penetration, contacts,
                                newton_iterations=work.newton_iterations, h=h, hold_torque=torque, work=work)

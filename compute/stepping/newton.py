@@ -1,5 +1,6 @@
 r"""The Newton loop of a step with soft bodies (generalised Newton on the coupled problem, with
-the contact rows H fixed at q_n).
+the contact rows H fixed at q_n but for the segment–disk rows, linearised again at the
+end-of-step positions of the first iterate: compute.contact.end_of_step).
 
 Iterations k = 0, 1, ... from v⁰ = v_free of the linear groups and v⁻ of the soft bodies:
 
@@ -59,18 +60,23 @@ from compute.stepping.step_stats import StepStats, carrying
 from compute.timing import TIMES
 
 ANDERSON = 4
+RELINEARISED_AT = 2  # the iteration whose iterate the segment–disk rows are linearised at (end_rows)
 CONTACT_MISSES = 2  # contact solves above tolerance that fail a step
 JACOBIAN_RATIO = 0.5
 MAX_BACKTRACKS = 12
 SLOW_CONTRACTION = 0.25
 
 
-def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int, misses_fail: bool = True):
+def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int, misses_fail: bool = True,
+               end_rows=None):
     """End-of-step velocities (n_dofs,), the last solve report and the attempt's work
     (StepStats), for the groups of ``step`` (a GroupStep, compute.stepping.groups).
     ``contacts`` holds the warm start and receives the impulses. ``misses_fail``: whether the
-    CONTACT_MISSES-th contact solve above tolerance fails the step (module docstring). A
-    StepFailure carries the work spent (StepStats, its ``work``)."""
+    CONTACT_MISSES-th contact solve above tolerance fails the step (module docstring).
+    ``end_rows``: rows of ``contacts`` linearised again at the end-of-step positions of the
+    iterate of iteration RELINEARISED_AT (compute.contact.end_of_step.EndOfStepSegmentRows), or
+    None. A StepFailure carries the work
+    spent (StepStats, its ``work``)."""
     its = sweeps = backtracks = 0
     try:
         n, h, theta = step.n_dofs, step.h, step.theta
@@ -88,6 +94,8 @@ def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int,
                 step.free_velocity(v, v_free)
             kept = contact_problem(step, contacts, soft_dofs, v_free, v_minus, kept)
             problem, stamp = kept
+            if end_rows is not None and it == RELINEARISED_AT:
+                end_rows.relinearise(contacts, problem, v)
             if it > 1:
                 with TIMES("residuals"):
                     if y_stamp != stamp:  # some body refactorised since y = M̂⁻¹ H r was computed

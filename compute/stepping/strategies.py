@@ -11,8 +11,9 @@ by ``solver.contact``: how the equations of one step are iterated.
 - ``auto``: ``active_set`` where it applies, ``fixed_point`` elsewhere (docs/ARCHITECTURE.md says
   why).
 
-A strategy is a function ``(step, contacts, v_minus, solver, tol, max_iterations, misses_fail)
--> (v, SolveReport, StepStats)`` over a GroupStep (compute.stepping.groups).
+A strategy is a function ``(step, contacts, v_minus, solver, tol, max_iterations, misses_fail,
+end_rows) -> (v, SolveReport, StepStats)`` over a GroupStep (compute.stepping.groups);
+``end_rows`` the rows it relinearises at every iterate (compute.contact.end_of_step) or None.
 """
 
 from __future__ import annotations
