@@ -13,7 +13,7 @@ by ``solver.contact``: how the equations of one step are iterated.
 
 A strategy is a function ``(step, contacts, v_minus, solver, tol, max_iterations, misses_fail,
 end_rows) -> (v, SolveReport, StepStats)`` over a GroupStep (compute.stepping.groups);
-``end_rows`` the rows it relinearises at every iterate (compute.contact.end_of_step) or None.
+``end_rows`` the rows it makes again at the first iterate (compute.contact.end_of_step) or None.
 """
 
 from __future__ import annotations
