@@ -32,7 +32,10 @@ contact forces with their segments (a geometric stiffness of the contacts) is no
 Newton tangent, and rows renewed at every iterate make the fixed point converge slowly at high
 pressure (benchmarks/results/end_of_step_rows.md). Only rows whose disk projects inside its
 segment at q_n are relinearised (both segment nodes in the row); the others are node–disk
-rows, convex.
+rows, convex. And only frictionless ones: the lag's tangential force, a r_n, lies within a
+frictional contact's cone (a ≪ μ), which holds it as it holds any tangential load, and the
+frictional mixtures' energy falls with the rows of q_n (benchmarks/results/end_of_step_rows.md),
+while making the rows again costs a re-solve of the contact problem within the step.
 """
 
 from __future__ import annotations
@@ -58,8 +61,10 @@ class EndOfStepSegmentRows:
 
     @classmethod
     def of_step(cls, model, state, contacts: ContactRows, h: float, theta: float) -> "EndOfStepSegmentRows | None":
-        """The rows of ``contacts`` (made at ``state``'s positions) of the segment–disk family
-        that hold both segment nodes; None when there are none."""
+        """The frictionless rows of ``contacts`` (made at ``state``'s positions) of the
+        segment–disk family that hold both segment nodes and both translations of the disk (a row
+        drops the entries that are exactly 0 at q_n, compute.contact.detection.narrow_phase, and
+        its dofs stay those of q_n); None when there are none."""
         offset = 0
         for fam in model.families:
             if fam.name == "segment_disk":
@@ -69,7 +74,8 @@ class EndOfStepSegmentRows:
             return None
         pairs = state.pairs["segment_disk"]
         dof = contacts.dof[offset:offset + len(pairs)]
-        inside = np.flatnonzero((dof[:, 0] >= 0) & (dof[:, 2] >= 0))
+        mu = contacts.mu[offset:offset + len(pairs)]
+        inside = np.flatnonzero(np.all(dof[:, :6] >= 0, axis=1) & (mu == 0.0))  # nodes g, b and the disk
         if not inside.size:
             return None
         return cls(model, state.q, state.v, h, theta, offset + inside, pairs[inside])

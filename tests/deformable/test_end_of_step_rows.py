@@ -1,8 +1,8 @@
 """Segment–disk rows linearised at the end of the step (compute.contact.end_of_step), against the
 exact distance of the disk's centre to the segment's line, computed here from the positions.
 
-The scene of test_segment_disk_rows: a T3 disk of radius 1 with a face on the +x axis, a rigid
-disk of radius 0.6 resting on that face. The soft disk turns at rate ω about its centre and the
+The scene of test_segment_disk_rows, frictionless: a T3 disk of radius 1 with a face on the +x
+axis (turned by 0.02 rad), a rigid disk of radius 0.6 in front of that face. The soft disk turns at rate ω about its centre and the
 rigid disk slides along the face: over a step h the face turns by about ω h, which the rows at
 the step's start cannot see.
 """
@@ -15,6 +15,7 @@ from compute.contact.end_of_step import EndOfStepSegmentRows
 from tests.deformable.test_segment_disk_rows import R_RIGID, _scene
 
 H, OMEGA, SLIDE = 0.5, 0.02, 0.01
+TURN = 0.02  # the soft disk turned a little, so that no entry of the face's row is exactly 0
 
 
 def _line_gap(model, q, pairs) -> np.ndarray:
@@ -26,9 +27,9 @@ def _line_gap(model, q, pairs) -> np.ndarray:
     return -cross / np.linalg.norm(e, axis=1) - model.rigid.radii[pairs[:, 1]]  # CCW loop: outside is to the right
 
 
-def _turning(tmp_path):
+def _turning(tmp_path, friction: float = 0.0):
     """(model, state, contacts, rows, v): the soft disk turning, the rigid disk sliding along y."""
-    model, _, state, _, _ = _scene(tmp_path, "nodes_and_segments", 0.0)
+    model, _, state, _, _ = _scene(tmp_path, "nodes_and_segments", 0.0, friction=friction, turn=TURN)
     detection.detect(model, state)
     contacts = detection.narrow_phase(model, state, branches=False)
     rows = EndOfStepSegmentRows.of_step(model, state, contacts, H, 1.0)
@@ -73,3 +74,9 @@ def test_at_the_steps_start_they_are_the_narrow_phase_rows(tmp_path):
     rows.relinearise(contacts, None, np.zeros_like(state.q))  # θ = 1: q⁺ = q_n
     assert np.allclose(contacts.hn[rows.rows], before[0], atol=1e-15)
     assert contacts.gap[rows.rows] == pytest.approx(before[1], abs=1e-15)
+
+
+def test_frictional_rows_keep_the_rows_of_the_steps_start(tmp_path):
+    """With friction the lag's tangential force lies within the cone: no rows are made again."""
+    _, _, _, rows, _ = _turning(tmp_path, friction=0.3)
+    assert rows is None

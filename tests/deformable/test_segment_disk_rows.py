@@ -20,13 +20,13 @@ from tests.deformable import scenes
 R_RIGID = 0.6
 
 
-def _scene(folder, rows: str, gap: float, pressure: float = 0.01):
+def _scene(folder, rows: str, gap: float, pressure: float = 0.01, friction: float = 0.3, turn: float = 0.0):
     """(model, stepper, state, x_f, L) of the soft disk and the rigid disk at ``gap`` from its face
     (the scene places it clear of the soft disk's circle; the state moves it there)."""
-    p, cells = scenes.disk(30, "T3")
+    p, cells = scenes.disk(30, "T3", turn=turn)
     face = p[np.argsort(p[:, 0])[-2:]]  # the two nodes of the face on the +x axis
     x_f, length = face[:, 0].mean(), abs(face[1, 1] - face[0, 1])
-    params = scenes.parameters((-1.01, 1.0 + 2 * R_RIGID + 0.02, -1.02, 1.02), element="T3", friction=0.3,
+    params = scenes.parameters((-1.01, 1.0 + 2 * R_RIGID + 0.02, -1.02, 1.02), element="T3", friction=friction,
                                time_step=0.5, pressures=(pressure,), contact_tolerance=1e-8, newton_tolerance=1e-9)
     params["solver"]["rigid_soft_rows"] = rows
     scenes.write(folder, params, soft=[(p, cells)], rigid=[((1.0 + R_RIGID + 0.01, 0.0), R_RIGID)])
