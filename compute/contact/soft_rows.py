@@ -42,8 +42,8 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   the positions so that its linearisation over a step can only under-predict it, this gap is
   not: a segment that turns by an angle a within a step brings it closer than predicted by
   about r_d a² / 2, and the row's normal lags the segment's by a, which drives a frictionless
-  polygon to spin; the Newton loop therefore linearises these rows again at its first
-  iterate's end-of-step positions (compute.contact.end_of_step). With T6 the half-edges under pressed disks turn back and forth at every
+  polygon to spin; the Newton loop therefore linearises the frictionless ones again at its
+  first iterate's end-of-step positions (compute.contact.end_of_step). With T6 the half-edges under pressed disks turn back and forth at every
   step (a period-2 oscillation), every step starts with many rows inside by about a half-edge's
   sagitta that the next step pushes out, and the packing creeps: a stage does not end. With T3
   there is no such oscillation, but a program takes more steps. What they buy: at high
