@@ -116,7 +116,7 @@ def test_single_particle_default(tmp_path):
 README_MIXTURE_PHI0 = {0.2: "0.7529", 0.5: "0.7492", 0.8: "0.7454", 1.0: "0.7430"}
 README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.7557", (0.2, 0.2): "0.7546", (0.5, 0.0): "0.7576", (0.5, 0.2): "0.7558",
                             (0.8, 0.0): "0.7601", (0.8, 0.2): "0.7577", (1.0, 0.0): "0.7604", (1.0, 0.2): "0.7571"}
-README_MIXTURE_XI_ALPHA = (6.9, 0.83)
+README_MIXTURE_XI_ALPHA = (7.0, 0.84)
 
 
 def test_mixture_compaction_default(tmp_path):
