@@ -42,9 +42,9 @@ def spin_energy(model, q: np.ndarray, v: np.ndarray) -> float:
     """Kinetic energy of the soft bodies' rigid rotations, ½ L² / I per body about its centroid."""
     e = 0.0
     for g in model.soft:
-        c = g.rotation_momenta(g.nodes(q))  # (B, 2n): c·v is the angular momentum
         x = g.nodes(q)
-        arm = x - x.mean(axis=1, keepdims=True)
+        c = g.rotation_momenta(x)  # (B, 2n): c·v is the angular momentum about the centroid
+        arm = x - g.batch.centroids(x)[:, None, :]
         inertia = np.sum(c * np.stack([-arm[..., 1], arm[..., 0]], axis=2).reshape(g.B, -1), axis=1)
         momentum = np.sum(c * g.nodes(v).reshape(g.B, -1), axis=1)
         e += float(np.sum(0.5 * momentum**2 / inertia))

@@ -76,10 +76,17 @@ def narrow_phase(model, state: State, branches: bool = True) -> ContactRows:
     return out
 
 
-def store_impulses(model, state: State, impulse: np.ndarray) -> None:
-    """Write solved impulses (nc, 2) back to the memory, in the order of :func:`narrow_phase`."""
-    k = 0
+def family_slices(model, state: State) -> dict[str, slice]:
+    """{family name: its rows} in the ContactRows of :func:`narrow_phase` at ``state``."""
+    out, k = {}, 0
     for fam in model.families:
         m = len(state.pairs[fam.name])
-        state.impulses[fam.name] = impulse[k:k + m].copy()
+        out[fam.name] = slice(k, k + m)
         k += m
+    return out
+
+
+def store_impulses(model, state: State, impulse: np.ndarray) -> None:
+    """Write solved impulses (nc, 2) back to the memory, in the order of :func:`narrow_phase`."""
+    for name, rows in family_slices(model, state).items():
+        state.impulses[name] = impulse[rows].copy()

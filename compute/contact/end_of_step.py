@@ -43,6 +43,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from compute.contact import detection
 from compute.contact.problem import gap_term
 from compute.contact.rows import ContactRows
 from compute.contact.soft_rows import segment_disk_rows
@@ -65,20 +66,14 @@ class EndOfStepSegmentRows:
         segment–disk family that hold both segment nodes and both translations of the disk (a row
         drops the entries that are exactly 0 at q_n, compute.contact.detection.narrow_phase, and
         its dofs stay those of q_n); None when there are none."""
-        offset = 0
-        for fam in model.families:
-            if fam.name == "segment_disk":
-                break
-            offset += len(state.pairs[fam.name])
-        else:
+        family = detection.family_slices(model, state).get("segment_disk")
+        if family is None:
             return None
-        pairs = state.pairs["segment_disk"]
-        dof = contacts.dof[offset:offset + len(pairs)]
-        mu = contacts.mu[offset:offset + len(pairs)]
+        dof, mu = contacts.dof[family], contacts.mu[family]
         inside = np.flatnonzero(np.all(dof[:, :6] >= 0, axis=1) & (mu == 0.0))  # nodes g, b and the disk
         if not inside.size:
             return None
-        return cls(model, state.q, state.v, h, theta, offset + inside, pairs[inside])
+        return cls(model, state.q, state.v, h, theta, family.start + inside, state.pairs["segment_disk"][inside])
 
     def relinearise(self, contacts: ContactRows, problem, v: np.ndarray) -> None:
         """Rewrite the rows in ``contacts`` (hn, ht, normal, point, gap) and in ``problem`` (a
