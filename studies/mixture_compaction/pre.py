@@ -16,11 +16,9 @@ With --relax rigid, a run whose μ is below the jamming friction starts from the
 packing jammed again with rigid disks at its μ (pre.jamming.relaxed_rigid_scene, once per μ and
 seed, in DIR/rigid/mu<jamming μ>_s<seed>_relaxed_mu<μ>/): with less friction the packing flows to a
 denser jammed state at the first pressure, which rigid disks compute in a fraction of the time
-the finite-element disks take; the soft disks' strain there is of the order of P/E = 1e-3. With
---relax none (the default) that flow is the first stage of the run itself. Either way φ₀ and Z₀
-are the prepared (shared) sample's. Not yet the default: the 30-disk default's κ = 0.8, μ = 0
-run, started relaxed, did not end its stage P/E = 0.1 within the stage's step budget (study
-README, "Preparation").
+the finite-element disks take; the soft disks' strain there is of the order of P/E = 1e-3. This
+is the default. With --relax none that flow is the first stage of the run itself. Either way φ₀
+and Z₀ are the prepared (shared) sample's (study README, "Preparation").
 
 The prepared sample's φ₀ and Z₀, written per run in study.json ("prepared"), are measured as post
 measures a frame (post.measures): φ on the mixture scene (rigid disks π r², soft disks by their
@@ -58,7 +56,7 @@ import numpy as np
 # program of the 1500-disk runs), a few minutes on 2 cores (measured: README.md).
 DEFAULTS = {"n": 30, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
             "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.2,
-            "relax": "none"}
+            "relax": "rigid"}
 # what a study.json written before a setting existed holds (--add compares with it)
 LEGACY_SETTINGS = {"preparation": "per-friction", "relax": "none"}
 # the rigid jamming runs of the preparation: jammed at P = 1 in units of rho <d>^2/t^2 (rigid
@@ -101,8 +99,8 @@ def main(argv=None) -> int:
                         f"(default {DEFAULTS['jamming_mu']})")
     p.add_argument("--relax", choices=("rigid", "none"), default=None,
                    help="shared preparation: runs with less friction than --jamming-mu start from the packing "
-                        "jammed again with rigid disks at their friction (rigid) or from the shared packing "
-                        "itself (none, the default; module docstring)")
+                        "jammed again with rigid disks at their friction (rigid, the default) or from the shared "
+                        "packing itself (none; module docstring)")
     p.add_argument("--seeds", type=int, nargs="+", default=DEFAULTS["seeds"], help="random seeds (default 1)")
     p.add_argument("--p-min", type=float, default=DEFAULTS["p_min"], help="first P/E (default 1e-3)")
     p.add_argument("--p-max", type=float, default=DEFAULTS["p_max"], help=f"last P/E (default {DEFAULTS['p_max']})")

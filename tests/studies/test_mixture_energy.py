@@ -5,8 +5,9 @@ dissipate, and nothing supplies work while P is constant. The energy is the pack
     E = kinetic + strain energy of the soft bodies + P × box area,
 
 measured after every step of the study's default 30-disk κ = 0.5, μ = 0 run (prepared by the
-study's pre.py) over its first two stages, P/E = 1e-3 and 3.2e-3. With the segment–disk rows
-linearised at the step's start only, the soft polygons were driven to spin: E rose at about half
+study's pre.py) over its first two stages, P/E = 1e-3 and 3.2e-3, started from the shared packing
+itself (``--relax none``), so that the first stage is the frictionless flow to a denser packing. With the
+segment–disk rows linearised at the step's start only, the soft polygons were driven to spin: E rose at about half
 the steps of the second stage and it never came to rest (compute.contact.end_of_step).
 """
 
@@ -23,7 +24,7 @@ def test_a_frictionless_mixture_loses_energy_and_comes_to_rest(tmp_path):
     from compute.run import Run
 
     pre = subprocess.run([sys.executable, "-m", "studies.mixture_compaction.pre", "--workdir", str(tmp_path),
-                          "--kappa", "0.5", "--mu", "0", "--pressures", "0.001", "0.0031622776601683794"],
+                          "--kappa", "0.5", "--mu", "0", "--relax", "none", "--pressures", "0.001", "0.0031622776601683794"],
                          cwd=ROOT, capture_output=True, text=True)
     assert pre.returncode == 0, pre.stderr
     run = Run(tmp_path / "runs" / "k0.5_mu0_s1" / "scene", tmp_path / "out", log=lambda msg: None)

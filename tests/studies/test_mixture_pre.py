@@ -170,7 +170,7 @@ def test_shared_preparation_one_sample_for_both_frictions(tmp_path):
 
     bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--preparation", "per-friction")
     assert bad.returncode == 2 and "field 'preparation'" in bad.stderr
-    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--relax", "rigid")
+    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--relax", "none")
     assert bad.returncode == 2 and "field 'relax'" in bad.stderr
 
 
