@@ -35,7 +35,12 @@ segment at q_n are relinearised (both segment nodes in the row); the others are 
 rows, convex. And only frictionless ones: the lag's tangential force, a r_n, lies within a
 frictional contact's cone (a ≪ μ), which holds it as it holds any tangential load, and the
 frictional mixtures' energy falls with the rows of q_n (benchmarks/results/end_of_step_rows.md),
-while making the rows again costs a re-solve of the contact problem within the step.
+while making the rows again costs a re-solve of the contact problem within the step. And only
+in a step taken at the full time step h, not in the sub-steps of a cut one (compute.stepping.control):
+a sub-step of h / 2^k turns its segments by about a 2^k-th of the step's turn, so the lag and the
+torque it leaves are as much smaller, while every sub-step would pay the re-solve; high-pressure
+stages take most of their steps in sub-steps, where the re-solve doubled the contact iterations
+(benchmarks/results/end_of_step_rows.md, "Full steps only").
 """
 
 from __future__ import annotations

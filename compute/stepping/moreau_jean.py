@@ -135,7 +135,9 @@ class Stepper:
         # linear groups only: one contact solve is exact
         tol, max_it = (self.newton_tolerance, self.newton_max_iterations) if step.iterates else (np.inf, 1)
         start_penetration = float(max(0.0, -contacts.gap.min())) if len(contacts) else 0.0
-        end_rows = EndOfStepSegmentRows.of_step(m, state, contacts, h, th) if step.iterates else None
+        # segment rows made again at the step's end, at the full step only (compute.contact.end_of_step)
+        full = step.iterates and h == self.h
+        end_rows = EndOfStepSegmentRows.of_step(m, state, contacts, h, th) if full else None
         v, report, work = self.strategy(step, contacts, state.v, self.solver, tol, max_it, misses_fail, end_rows)
         if not np.all(np.isfinite(v)):
             raise carrying(StepFailure(f"non-finite velocities after the contact solve (contact residual "

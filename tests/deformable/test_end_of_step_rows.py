@@ -80,3 +80,17 @@ def test_frictional_rows_keep_the_rows_of_the_steps_start(tmp_path):
     """With friction the lag's tangential force lies within the cone: no rows are made again."""
     _, _, _, rows, _ = _turning(tmp_path, friction=0.3)
     assert rows is None
+
+
+def test_rows_are_made_again_in_full_steps_only(tmp_path, monkeypatch):
+    """A cut step's sub-steps keep the rows of their start: the rows are made again in an attempt
+    at the full time step h, not in one at h / 2 (compute.contact.end_of_step)."""
+    from compute.bodies import Load
+
+    model, stepper, state, _, _ = _scene(tmp_path, "nodes_and_segments", 0.0, friction=0.0, turn=TURN)
+    model.rigid.view(state.v)[0, 0] = -SLIDE  # pressed into the face: the step needs Newton iterations
+    made = []
+    monkeypatch.setattr(EndOfStepSegmentRows, "relinearise", lambda self, *args: made.append(self.h))
+    for h in (stepper.h, stepper.h / 2):
+        stepper._attempt(state, Load(0.01, 0.0, stepper.gravity), h)
+    assert made == [stepper.h]
