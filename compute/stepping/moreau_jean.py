@@ -7,8 +7,8 @@ With h the time step and θ ∈ [1/2, 1]:
     r from the contact solver: Signorini on g̃ + hθ u_n⁺, Coulomb on u_t⁺ (compute.contact.problem)
 
 1. detection (Verlet lists, rebuilt past the skin) and narrow phase at q_n: rows of H, gaps
-   (the segment–disk rows are made again at the end-of-step positions of the first Newton
-   iterate, compute.contact.end_of_step);
+   (in a step at the full h, the frictionless segment–disk rows are made again at the
+   end-of-step positions of the first Newton iterate, compute.contact.end_of_step);
 2. every body group prepares the step (loads, x_n);
 3. rigid disks and walls only: one contact solve with the diagonal compliance; with soft bodies,
    the Newton iterations of the step strategy the scene names (:mod:`compute.stepping.strategies`:
