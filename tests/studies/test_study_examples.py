@@ -114,9 +114,9 @@ def test_single_particle_default(tmp_path):
 # The README's "Results of the small default": the prepared φ₀ per κ (one preparation shared by
 # both frictions), the first stage's φ per (κ, μ), and ξ, α fitted over all runs
 README_MIXTURE_PHI0 = {0.2: "0.7529", 0.5: "0.7492", 0.8: "0.7454", 1.0: "0.7430"}
-README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.7557", (0.2, 0.2): "0.7546", (0.5, 0.0): "0.7576", (0.5, 0.2): "0.7558",
-                            (0.8, 0.0): "0.7601", (0.8, 0.2): "0.7577", (1.0, 0.0): "0.7604", (1.0, 0.2): "0.7571"}
-README_MIXTURE_XI_ALPHA = (7.0, 0.84)
+README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.7557", (0.2, 0.2): "0.7546", (0.5, 0.0): "0.7577", (0.5, 0.2): "0.7559",
+                            (0.8, 0.0): "0.7603", (0.8, 0.2): "0.7578", (1.0, 0.0): "0.7599", (1.0, 0.2): "0.7571"}
+README_MIXTURE_XI_ALPHA = (7.1, 0.85)
 
 
 def test_mixture_compaction_default(tmp_path):
