@@ -184,12 +184,14 @@ def test_runs_added_to_a_study_keep_the_others(tmp_path):
     assert (w / "runs" / "k1_mu0.2_s1" / "out" / "COMPLETE").is_file()
     assert (first / "out" / "COMPLETE").stat().st_mtime_ns == stamps[first / "out" / "COMPLETE"]
 
-    # a frictionless run compressed from the frictional packing (--jamming-mu): no new jamming
+    # a frictionless run compressed from the frictional packing (--jamming-mu): no new jamming, the
+    # packing relaxed without friction with rigid disks (--relax rigid), the same soft disks moved
     script("pre", w, *TINY, "--kappa", "1", "--mu", "0", "--jamming-mu", "0.2", "--add")
     study = json.loads((w / "study.json").read_text())
     added = study["runs"][-1]
     assert (added["name"], added["mu"], added["jamming_mu"]) == ("k1_mu0_s1", 0.0, 0.2) and len(study["jamming"]) == 1
+    assert [(r["mu"], r["from_mu"]) for r in study["relaxed"]] == [(0.0, 0.2)]
     frictional, frictionless = (read_scene(w / "runs" / name / "scene") for name in ("k1_mu0.2_s1", "k1_mu0_s1"))
     for a, b in zip(frictional.deformable, frictionless.deformable):
-        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_allclose(a.points - a.points.mean(axis=0), b.points - b.points.mean(axis=0), atol=1e-9)
     assert frictional.friction.max() == 0.2 and frictionless.friction.max() == 0.0
