@@ -105,8 +105,7 @@ def _active_set_newton(step, contacts, v_minus, solver, tol, max_iterations, end
                 step.free_velocity(v, v_free, exact=True)
             kept = newton.contact_problem(step, contacts, soft_dofs, v_free, v_minus, kept)
             problem = kept[0]
-            if end_rows is not None and it == newton.RELINEARISED_AT:
-                end_rows.relinearise(contacts, problem, v)
+            newton.relinearise_at(it, end_rows, contacts, problem, v)
             if it == 1:  # |W_ii| of the first iterate: the merit's scale for the whole step
                 scale = np.maximum(np.abs(problem.W[:, 0, 0]), 1e-300)
             r_old = r.copy()

@@ -1,6 +1,6 @@
 r"""The Newton loop of a step with soft bodies (generalised Newton on the coupled problem, with
-the contact rows H fixed at q_n but for the segment–disk rows, linearised again at the
-end-of-step positions of the first iterate: compute.contact.end_of_step).
+the contact rows H fixed at q_n but for the segment–disk rows the step gives, linearised again
+at the end-of-step positions of the first iterate: compute.contact.end_of_step).
 
 Iterations k = 0, 1, ... from v⁰ = v_free of the linear groups and v⁻ of the soft bodies:
 
@@ -94,8 +94,7 @@ def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int,
                 step.free_velocity(v, v_free)
             kept = contact_problem(step, contacts, soft_dofs, v_free, v_minus, kept)
             problem, stamp = kept
-            if end_rows is not None and it == RELINEARISED_AT:
-                end_rows.relinearise(contacts, problem, v)
+            relinearise_at(it, end_rows, contacts, problem, v)
             if it > 1:
                 with TIMES("residuals"):
                     if y_stamp != stamp:  # some body refactorised since y = M̂⁻¹ H r was computed
@@ -146,6 +145,13 @@ def solve_step(step, contacts, v_minus, solver, tol: float, max_iterations: int,
         carrying(exc, StepStats(its, sweeps, backtracks))
         raise
     return v, report, StepStats(its, sweeps, backtracks)
+
+
+def relinearise_at(it: int, end_rows, contacts, problem, v: np.ndarray) -> None:
+    """At iteration RELINEARISED_AT, the rows ``end_rows`` (or None) of ``contacts`` and
+    ``problem`` made again at the end-of-step positions of the iterate ``v`` (n_dofs,)."""
+    if end_rows is not None and it == RELINEARISED_AT:
+        end_rows.relinearise(contacts, problem, v)
 
 
 def contact_problem(step, contacts, soft_dofs: list, v_free: np.ndarray, v_minus: np.ndarray, kept):
