@@ -156,6 +156,10 @@ def main(argv=None) -> int:
     kept = {r["name"] for r in before["runs"]}
     jammed = {(j["mu"], j["seed"]): j for j in before["jamming"]}
     relaxed = {(j["mu"], j["seed"]): j for j in before.get("relaxed", [])}
+    # φ₀ of each prepared sample (κ, seed, jamming μ), measured once: its frictions' scenes hold
+    # the same soft disks, translated where relaxed, whose areas differ in the last bit
+    sample_phi = {(r["kappa"], r["seed"], r.get("jamming_mu")): r["prepared"]["phi"]
+                  for r in before["runs"] if r.get("prepared")}
 
     runs, jams, relaxations = [], [], []
     t_start = time.perf_counter()
@@ -212,9 +216,11 @@ def main(argv=None) -> int:
                                              n_elements=a.elements, volumetric=a.volumetric, parameters=params)
                 radii = np.asarray(read_scene(folder).radius)
                 actual = float(np.sum(radii[soft] ** 2) / np.sum(radii**2))
+                sample = (kappa, seed, mu_jam)
+                if sample not in sample_phi and jam["measures"] is not None:
+                    sample_phi[sample] = prepared_phi(folder, prepared_bounds)
                 prepared = None if jam["measures"] is None else {
-                    "phi": prepared_phi(folder, prepared_bounds),
-                    **{k: v for k, v in jam["measures"].items() if k.startswith("Z")}}
+                    "phi": sample_phi[sample], **{k: v for k, v in jam["measures"].items() if k.startswith("Z")}}
                 runs.append({"name": name, "kappa": kappa, "mu": mu, "jamming_mu": mu_jam, "seed": seed,
                              "n_soft": int(soft.sum()),
                              "kappa_actual": round(actual, 6), "scene": str(folder.relative_to(w)),
