@@ -32,10 +32,29 @@ def resumed(run_dir: Path):
         (out / "frames").mkdir()
         run = Run(run_dir / "scene", out, resume=True, log=lambda msg: None)
         run.progress = RunProgress(out, len(run.scene.loading.pressures), None)
+        _stage_settings(run)
         try:
             yield run
         finally:
             run.history.close()
+
+
+def _stage_settings(run) -> None:
+    """The resumed stage's soft-body inertia and wall damping, as ``Run._pressure_stage`` sets them
+    before its first step (checkouts that have them): without them the steps measured from a
+    checkpoint are not the run's own (the walls of a stage with ``walls.damping_ratio`` would
+    ring more)."""
+    import compute.run as run_module
+
+    pressures = run.scene.loading.pressures
+    if (not hasattr(run, "_stage_damping") or run.scene.walls.control == "velocity"
+            or run.state.stage >= len(pressures)):
+        return
+    pressure, solver = pressures[run.state.stage], run.scene.solver
+    for group in run.model.soft:
+        group.scale_mass(run_module.mass_scale(solver.mass_scaling, pressure, solver.time_step,
+                                               group.batch.material.density, run.model.diameter))
+    run.model.walls.stage_damping = run._stage_damping(pressure)
 
 
 def step(stepper, state, *load):

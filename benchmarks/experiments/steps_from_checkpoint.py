@@ -54,6 +54,7 @@ def main() -> None:
     ap.add_argument("--contact", help="contact solver instead of the scene's (solver.contact)")
     ap.add_argument("--time-step", type=float, help="time step h instead of the scene's (solver.time_step)")
     ap.add_argument("--screening", type=float, help="solver.contact_screening instead of the scene's")
+    ap.add_argument("--tolerance", type=float, help="solver.contact_tolerance instead of the scene's")
     ap.add_argument("--json", type=Path, help="append the result line to this file")
     ap.add_argument("--solves", action="store_true", help="record every contact solve (sweeps, error, seconds)")
     a = ap.parse_args()
@@ -62,14 +63,15 @@ def main() -> None:
 
     commit = checkout.commit()
     with checkout.resumed(a.run) as run:
-        if a.contact or a.screening is not None:
+        if a.contact or a.screening is not None or a.tolerance is not None:
             from dataclasses import replace
 
             from compute import solvers
 
-            settings = replace(run.scene.solver, contact=a.contact or run.scene.solver.contact,
-                               contact_screening=run.scene.solver.contact_screening if a.screening is None
-                               else a.screening)
+            scene = run.scene.solver
+            settings = replace(scene, contact=a.contact or scene.contact,
+                               contact_screening=scene.contact_screening if a.screening is None else a.screening,
+                               contact_tolerance=scene.contact_tolerance if a.tolerance is None else a.tolerance)
             run.stepper.solver = solvers.for_model(settings, run.model)
         if a.time_step:
             run.stepper.h = a.time_step
@@ -82,6 +84,7 @@ def main() -> None:
         first = st.step
         result = {"label": a.label, "commit": commit, "contact": type(solver).__name__, "h": run.stepper.h,
                   "screening": run.scene.solver.contact_screening if a.screening is None else a.screening,
+                  "tolerance": run.stepper.solver.tolerance,
                   "from_step": first, "stage": st.stage, "newton_iterations": 0, "cuts": 0, "load_halvings": 0,
                   "sweeps": 0, "phi": [], "step_seconds": [], "step_counts": [], "sub_steps": [], **({"solves": []} if a.solves else {})}
         t0 = time.perf_counter()
