@@ -16,12 +16,13 @@ reached, seconds); --json appends it to a file.
 from __future__ import annotations
 
 import os
+import sys
 
-for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-    os.environ[_var] = "1"
+if "--as-cli" not in sys.argv:  # --as-cli: the pools as `python -m compute --threads 1` starts them
+    for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -57,8 +58,15 @@ def main() -> None:
     ap.add_argument("--tolerance", type=float, help="solver.contact_tolerance instead of the scene's")
     ap.add_argument("--json", type=Path, help="append the result line to this file")
     ap.add_argument("--solves", action="store_true", help="record every contact solve (sweeps, error, seconds)")
+    ap.add_argument("--as-cli", action="store_true",
+                    help="threads as `python -m compute --threads 1` sets them (compute.threads.configure(1)), "
+                         "the BLAS pools left to the checkout, instead of every pool pinned to 1 by the environment")
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
+    if a.as_cli:
+        from compute.threads import configure
+
+        configure(1)
     from compute.stepping import load_control
 
     commit = checkout.commit()
