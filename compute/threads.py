@@ -13,6 +13,13 @@ launch (benchmarks/results/threads.md), which a small group of bodies does not e
 configured number (the 144-disk mixture's 74 soft bodies ran slower on two passive threads
 than on one before this rule: benchmarks/results/design_figures.md).
 
+``configure(n)`` also caps the BLAS pools (OpenBLAS, MKL; threadpoolctl) to n threads. Why: numba's
+``np.dot`` inside the contact kernels calls the OpenBLAS that scipy loads, which threads even a
+dot product of a few thousand entries and whose idle threads busy-wait, taking a core from
+the run beside it (benchmarks/results/threads.md). The study dispatcher's runs had the cap
+already, from the environment it gives them (OPENBLAS_NUM_THREADS); a run started by hand or
+from Python did not.
+
 A run may be given more threads while it runs (:class:`ThreadsFile`): it reads an optional file
 ``OUT/threads`` (one integer) after every step and, when it changed, calls ``configure`` again
 with it (capped to NUMBA_NUM_THREADS, the pool numba started with). Why: a study dispatcher
@@ -46,7 +53,18 @@ def configure(threads: int | None = None) -> int:
     if threads is not None and not 1 <= threads <= available:
         raise ValueError(f"threads: expected 1..{available} (the cores numba may use), got {threads}")
     _max_threads = threads or available
+    if threads is not None:
+        _limit_blas(threads)
     return _max_threads
+
+
+def _limit_blas(threads: int) -> None:
+    """Cap every loaded BLAS pool to ``threads`` (module docstring), scipy's included: numba's
+    kernels call the OpenBLAS of ``scipy.linalg.cython_blas``, which loads only when imported."""
+    import scipy.linalg.cython_blas  # noqa: F401  (loads the BLAS numba's np.dot calls)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=threads, user_api="blas")
 
 
 def configured() -> int:

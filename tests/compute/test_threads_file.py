@@ -122,3 +122,28 @@ def test_dispatcher_gives_the_freed_core_to_the_run_still_going(tmp_path, monkey
     assert any(m.startswith("long: 2 threads") for m in said), said
     assert "threads: 1 -> 2" in (tmp_path / "long" / "out" / "compute.log").read_text()
     assert not (tmp_path / "long" / "out" / "threads").exists()  # removed when the run ended
+
+
+def test_configure_caps_the_blas_pool_numba_calls():
+    """configure(1) in a fresh process leaves every loaded BLAS pool at one thread, the OpenBLAS
+    behind numba's np.dot (scipy.linalg.cython_blas) included, whatever OPENBLAS_NUM_THREADS
+    said: a run started by hand with --threads 1 has no busy-waiting BLAS thread."""
+    code = textwrap.dedent("""
+        import numba, numpy as np, threadpoolctl
+        from compute import threads
+        threads.configure(1)
+
+        @numba.njit
+        def dot(a, b):
+            return np.dot(a, b)
+
+        dot(np.ones(5000), np.ones(5000))
+        print(sorted((i["filepath"], i["num_threads"]) for i in threadpoolctl.threadpool_info()
+                     if i["user_api"] == "blas"))
+    """)
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
+                         cwd=Path(__file__).resolve().parents[2]).stdout
+    pools = eval(out)
+    assert any("scipy_openblas" in path and "64" not in path for path, _ in pools), out  # numba's BLAS
+    assert all(n == 1 for _, n in pools), out
