@@ -18,7 +18,7 @@ than on one before this rule: benchmarks/results/design_figures.md).
 dot product of a few thousand entries and whose idle threads busy-wait, taking a core from
 the run beside it (benchmarks/results/threads.md). The study dispatcher's runs had the cap
 already, from the environment it gives them (OPENBLAS_NUM_THREADS); a run started by hand or
-from Python did not.
+from Python did not. A run given more threads by ``OUT/threads`` (below) keeps its BLAS pool.
 
 A run may be given more threads while it runs (:class:`ThreadsFile`): it reads an optional file
 ``OUT/threads`` (one integer) after every step and, when it changed, calls ``configure`` again
@@ -42,8 +42,9 @@ THREADS_FILE = "threads"  # OUT/threads: the most threads a run may use from its
 _max_threads: int | None = None
 
 
-def configure(threads: int | None = None) -> int:
-    """Use at most ``threads`` threads (default: NUMBA_NUM_THREADS or every core); returns it."""
+def configure(threads: int | None = None, blas: bool = True) -> int:
+    """Use at most ``threads`` threads (default: NUMBA_NUM_THREADS or every core) in the parallel
+    kernels, and, when ``threads`` is given and ``blas``, in the BLAS pools too; returns it."""
     global _max_threads
     if "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ:  # the user's choice wins
         os.environ["OMP_WAIT_POLICY"] = "passive"
@@ -53,7 +54,7 @@ def configure(threads: int | None = None) -> int:
     if threads is not None and not 1 <= threads <= available:
         raise ValueError(f"threads: expected 1..{available} (the cores numba may use), got {threads}")
     _max_threads = threads or available
-    if threads is not None:
+    if threads is not None and blas:
         _limit_blas(threads)
     return _max_threads
 
@@ -111,7 +112,7 @@ class ThreadsFile:
         if n == configured():
             return None
         before = configured()
-        configure(n)
+        configure(n, blas=False)  # the BLAS pool stays as the run started: more of it is not measured
         self.log(f"threads: {before} -> {n} ({self.path}"
                  + (f" asks {wanted}, NUMBA_NUM_THREADS is {n})" if wanted != n else ")"))
         return n
