@@ -40,21 +40,12 @@ def resumed(run_dir: Path):
 
 
 def _stage_settings(run) -> None:
-    """The resumed stage's soft-body inertia and wall damping, as ``Run._pressure_stage`` sets them
-    before its first step (checkouts that have them): without them the steps measured from a
-    checkpoint are not the run's own (the walls of a stage with ``walls.damping_ratio`` would
-    ring more)."""
-    import compute.run as run_module
-
+    """The resumed pressure stage's settings (``Run.start_stage``, in checkouts that have it):
+    without them the steps measured from a checkpoint are not the run's own (the walls of a
+    stage with ``walls.damping_ratio`` would ring more)."""
     pressures = run.scene.loading.pressures
-    if (not hasattr(run, "_stage_damping") or run.scene.walls.control == "velocity"
-            or run.state.stage >= len(pressures)):
-        return
-    pressure, solver = pressures[run.state.stage], run.scene.solver
-    for group in run.model.soft:
-        group.scale_mass(run_module.mass_scale(solver.mass_scaling, pressure, solver.time_step,
-                                               group.batch.material.density, run.model.diameter))
-    run.model.walls.stage_damping = run._stage_damping(pressure)
+    if hasattr(run, "start_stage") and run.scene.walls.control != "velocity" and run.state.stage < len(pressures):
+        run.start_stage(pressures[run.state.stage])
 
 
 def step(stepper, state, *load):

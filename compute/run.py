@@ -214,11 +214,7 @@ class Run:
         there), else None."""
         load = self.scene.loading
         previous = load.pressures[self.state.stage - 1] if self.state.stage else 0.0
-        solver = self.scene.solver
-        for group in self.model.soft:  # the stage's inertia (compute.bodies.soft, mass scaling)
-            group.scale_mass(mass_scale(solver.mass_scaling, pressure, solver.time_step,
-                                        group.batch.material.density, self.model.diameter))
-        self.model.walls.stage_damping = self._stage_damping(pressure)
+        self.start_stage(pressure)
         if self.model.walls.stage_damping > 0.0 and self.state.stage_steps == 0:
             self.log(f"stage {self.state.stage}: wall damping at least {self.model.walls.stage_damping:.4g} "
                      f"(walls.damping_ratio)")
@@ -256,6 +252,16 @@ class Run:
         stall.start_stage(st)
         self.checkpoint()
         return None
+
+    def start_stage(self, pressure: float) -> None:
+        """The model's settings for the pressure stage at ``pressure``, set before its first step
+        and again when it is resumed: the soft bodies' inertia (compute.bodies.soft, mass scaling)
+        and the walls' least damping (:meth:`_stage_damping`)."""
+        solver = self.scene.solver
+        for group in self.model.soft:
+            group.scale_mass(mass_scale(solver.mass_scaling, pressure, solver.time_step,
+                                        group.batch.material.density, self.model.diameter))
+        self.model.walls.stage_damping = self._stage_damping(pressure)
 
     def _stage_damping(self, pressure: float) -> float:
         """The least wall damping of the stage at ``pressure`` (compute.bodies.walls.breathing_damping,

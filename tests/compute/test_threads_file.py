@@ -2,6 +2,7 @@
 dispatcher's share of freed cores (studies.dispatch.core_shares): the file is picked up after a
 step, and the results do not depend on the thread count (the body-group kernels are per body)."""
 
+import json
 import os
 import subprocess
 import sys
@@ -129,7 +130,7 @@ def test_configure_caps_the_blas_pool_numba_calls():
     behind numba's np.dot (scipy.linalg.cython_blas) included, whatever OPENBLAS_NUM_THREADS
     said: a run started by hand with --threads 1 has no busy-waiting BLAS thread."""
     code = textwrap.dedent("""
-        import numba, numpy as np, threadpoolctl
+        import json, numba, numpy as np, threadpoolctl
         from compute import threads
         threads.configure(1)
 
@@ -138,12 +139,12 @@ def test_configure_caps_the_blas_pool_numba_calls():
             return np.dot(a, b)
 
         dot(np.ones(5000), np.ones(5000))
-        print(sorted((i["filepath"], i["num_threads"]) for i in threadpoolctl.threadpool_info()
-                     if i["user_api"] == "blas"))
+        print(json.dumps(sorted((i["filepath"], i["num_threads"]) for i in threadpoolctl.threadpool_info()
+                                if i["user_api"] == "blas")))
     """)
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
                          cwd=Path(__file__).resolve().parents[2]).stdout
-    pools = eval(out)
+    pools = json.loads(out)
     assert any("scipy_openblas" in path and "64" not in path for path, _ in pools), out  # numba's BLAS
     assert all(n == 1 for _, n in pools), out
