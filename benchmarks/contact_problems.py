@@ -2,8 +2,12 @@
 
 ``export``: runs a scene (compute's Run, one thread) and saves the contact problem of the first
 contact solve of the first step of stage ``--stage`` (or of step ``--step``) as a .npz file,
-cold (impulses zero), then stops the run. ``compare``: solves saved problems from zero impulses
-with each solver to each tolerance and prints one JSON line per solve: iterations, seconds,
+cold (impulses zero), then stops the run. With ``--run`` it resumes a run from its checkpoint
+instead (a copy, ``benchmarks/checkout.py``); ``--count K`` saves the next K solves (FILE_000.npz,
+…) and ``--warm`` keeps their warm-start impulses. ``compare``: solves saved problems (from their
+warm start if saved so, else from zero impulses) with each solver to each tolerance (``mprgp``
+and ``mprgp_none``: MPRGP with and without its preconditioner) and prints one JSON line per
+solve: iterations, seconds,
 the natural-map error (compute.contact.residual, the stopping test) and the velocity error
 (natural-map error in velocity units relative to the free velocity's scale), both
 recomputed from the returned impulses.
@@ -14,6 +18,8 @@ recomputed from the returned impulses.
     python benchmarks/contact_problems.py compare P/*.npz --solvers nlgs block interior_point --tolerances 1e-6 1e-8
     python benchmarks/contact_problems.py compare P/rigid1500.npz --solvers interior_point --friction 0.05
     python benchmarks/contact_problems.py compare P/mix1500.npz --solvers mprgp --tolerances 1e-4 --screening 0 0.1
+    python benchmarks/contact_problems.py export --run W/runs/k0.8_mu0_s2 --stage 5 --count 40 --warm --file P/k08.npz
+    python benchmarks/contact_problems.py compare P/k08_*.npz --solvers mprgp_none mprgp --tolerances 1e-4 --screening 0.1
 """
 
 from __future__ import annotations
@@ -41,16 +47,17 @@ class _Saved(BaseException):
     """Ends the exporting run once the problem is written."""
 
 
-def save(problem, path: Path, **meta) -> None:
-    """The problem's rows, compliance and free velocity (not W: recomputed on load) to ``path``."""
-    arrays = {k: getattr(problem, k) for k in FIELDS}
+def save(problem, path: Path, warm: bool = False, **meta) -> None:
+    """The problem's rows, compliance and free velocity (not W: recomputed on load) to ``path``,
+    with its impulses if ``warm``."""
+    arrays = {k: getattr(problem, k) for k in FIELDS + (("impulse",) if warm else ())}
     arrays.update({"c_" + k: getattr(problem.compliance, k) for k in COMPLIANCE})
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, meta=json.dumps(meta), **arrays)
 
 
 def load(path: Path):
-    """The ContactProblem saved in ``path``, with zero impulses; and its metadata."""
+    """The ContactProblem saved in ``path``, with its saved warm start or zero impulses; and its metadata."""
     from compute.contact.compliance import Compliance, delassus_blocks
     from compute.contact.problem import ContactProblem
 
@@ -58,17 +65,27 @@ def load(path: Path):
     comp = Compliance(*(z["c_" + k] for k in COMPLIANCE))
     W = np.empty((len(z["gap_term"]), 2, 2))
     delassus_blocks(z["dof"], z["hn"], z["ht"], *comp.arrays(), W)
-    p = ContactProblem(z["dof"], z["hn"], z["ht"], W, comp, z["v_free"].copy(), z["gap_term"], z["mu"],
-                       np.zeros((len(z["gap_term"]), 2)))
+    impulse = z["impulse"].copy() if "impulse" in z else np.zeros((len(z["gap_term"]), 2))
+    p = ContactProblem(z["dof"], z["hn"], z["ht"], W, comp, z["v_free"].copy(), z["gap_term"], z["mu"], impulse)
     return p, json.loads(str(z["meta"]))
 
 
 def export(a) -> None:
+    import contextlib
+
     from compute.run import Run
 
-    with tempfile.TemporaryDirectory() as tmp:
-        run = Run(a.scene, Path(tmp) / "out", display=None, log=lambda msg: None)
+    with contextlib.ExitStack() as stack:
+        if a.run:
+            sys.path.insert(0, str(Path(__file__).resolve().parent))
+            import checkout
+
+            run = stack.enter_context(checkout.resumed(a.run))
+        else:
+            tmp = stack.enter_context(tempfile.TemporaryDirectory())
+            run = Run(a.scene, Path(tmp) / "out", display=None, log=lambda msg: None)
         inner = run.stepper.solver
+        saved = []
 
         class Recorder:
             tolerance = inner.tolerance
@@ -77,17 +94,22 @@ def export(a) -> None:
             def solve(self, problem):
                 st = run.state
                 if (a.step is not None and st.step + 1 >= a.step) or (a.stage is not None and st.stage >= a.stage):
-                    problem.impulse[:] = 0.0
-                    save(problem, a.file, scene=str(a.scene), step=st.step + 1, stage=st.stage,
+                    path = a.file if a.count == 1 else a.file.with_name(f"{a.file.stem}_{len(saved):03d}.npz")
+                    kept = copy.deepcopy(problem)
+                    if not a.warm:
+                        kept.impulse[:] = 0.0
+                    save(kept, path, a.warm, scene=str(a.scene or a.run), step=st.step + 1, stage=st.stage,
                          contacts=len(problem), dofs=len(problem.compliance))
-                    raise _Saved
+                    saved.append(path)
+                    if len(saved) == a.count:
+                        raise _Saved
                 return inner.solve(problem)
 
         run.stepper.solver = Recorder()
         try:
             run.execute()
         except _Saved:
-            print(f"saved {a.file}", file=sys.stderr)
+            print(f"saved {len(saved)} problems: {saved[0]} …", file=sys.stderr)
             return
         raise SystemExit("the run ended before the requested step or stage")
 
@@ -102,7 +124,8 @@ def solver_of(name: str, tol: float, soft: bool, sweeps: int = 200_000):
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
 
-    return {"mprgp": lambda: MPRGP(tol, sweeps), "nlgs": lambda: NLGS(tol, sweeps), "block": lambda: BlockGS(tol, sweeps // 4),
+    return {"mprgp": lambda: MPRGP(tol, sweeps), "mprgp_none": lambda: MPRGP(tol, sweeps, preconditioner="none"),
+            "nlgs": lambda: NLGS(tol, sweeps), "block": lambda: BlockGS(tol, sweeps // 4),
             "nlgs_block": lambda: NLGSThen.block(tol, sweeps), "interior_point": lambda: InteriorPoint(tol),
             "nlgs_ip": lambda: NLGSThen.interior_point(tol, sweeps, soft=soft), "cone_point": lambda: ConePoint(tol)}[name]()
 
@@ -135,8 +158,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
     e = sub.add_parser("export")
-    e.add_argument("--scene", type=Path, required=True)
+    source = e.add_mutually_exclusive_group(required=True)
+    source.add_argument("--scene", type=Path, help="run this scene from its start")
+    source.add_argument("--run", type=Path, help="resume this run folder (scene/, out/) from its checkpoint")
     e.add_argument("--file", type=Path, required=True)
+    e.add_argument("--count", type=int, default=1, help="save this many successive solves")
+    e.add_argument("--warm", action="store_true", help="keep the warm-start impulses (default: zero)")
     g = e.add_mutually_exclusive_group(required=True)
     g.add_argument("--stage", type=int)
     g.add_argument("--step", type=int)
