@@ -5,9 +5,8 @@ contact solve of the first step of stage ``--stage`` (or of step ``--step``) as 
 cold (impulses zero), then stops the run. With ``--run`` it resumes a run from its checkpoint
 instead (a copy, ``benchmarks/checkout.py``); ``--count K`` saves the next K solves (FILE_000.npz,
 …) and ``--warm`` keeps their warm-start impulses. ``compare``: solves saved problems (from their
-warm start if saved so, else from zero impulses) with each solver to each tolerance (``mprgp``
-and ``mprgp_none``: MPRGP with and without its preconditioner) and prints one JSON line per
-solve: iterations, seconds,
+warm start if saved so, else from zero impulses) with each solver to each tolerance and prints
+one JSON line per solve: iterations, seconds,
 the natural-map error (compute.contact.residual, the stopping test) and the velocity error
 (natural-map error in velocity units relative to the free velocity's scale), both
 recomputed from the returned impulses.
@@ -19,7 +18,7 @@ recomputed from the returned impulses.
     python benchmarks/contact_problems.py compare P/rigid1500.npz --solvers interior_point --friction 0.05
     python benchmarks/contact_problems.py compare P/mix1500.npz --solvers mprgp --tolerances 1e-4 --screening 0 0.1
     python benchmarks/contact_problems.py export --run W/runs/k0.8_mu0_s2 --stage 5 --count 40 --warm --file P/k08.npz
-    python benchmarks/contact_problems.py compare P/k08_*.npz --solvers mprgp_none mprgp --tolerances 1e-4 --screening 0.1
+    python benchmarks/contact_problems.py compare P/k08_*.npz --solvers mprgp --tolerances 1e-4 --screening 0.1
 """
 
 from __future__ import annotations
@@ -124,8 +123,7 @@ def solver_of(name: str, tol: float, soft: bool, sweeps: int = 200_000):
     from compute.solvers.nlgs import NLGS
     from compute.solvers.nlgs_then import NLGSThen
 
-    return {"mprgp": lambda: MPRGP(tol, sweeps), "mprgp_none": lambda: MPRGP(tol, sweeps, preconditioner="none"),
-            "nlgs": lambda: NLGS(tol, sweeps), "block": lambda: BlockGS(tol, sweeps // 4),
+    return {"mprgp": lambda: MPRGP(tol, sweeps), "nlgs": lambda: NLGS(tol, sweeps), "block": lambda: BlockGS(tol, sweeps // 4),
             "nlgs_block": lambda: NLGSThen.block(tol, sweeps), "interior_point": lambda: InteriorPoint(tol),
             "nlgs_ip": lambda: NLGSThen.interior_point(tol, sweeps, soft=soft), "cone_point": lambda: ConePoint(tol)}[name]()
 

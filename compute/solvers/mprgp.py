@@ -21,18 +21,6 @@ reduced free gradient φ̃ = min(r / ᾱ, φ) on F:
   length ᾱ = 1.9 / ‖W‖ (an expansion: the free set may grow by many contacts at once);
 - otherwise a proportioning step along β (contacts released from r = 0).
 
-Preconditioning in face (Dostál 2009, Optimal Quadratic Programming Algorithms, §5.10): once a
-solve has taken ``plain_iterations`` iterations without converging, the conjugate gradients on
-the free set run on z = M_F⁻¹ g instead of φ, M_F the block diagonal of A by soft body
-restricted to the free contacts (:mod:`compute.solvers.body_blocks`): a pressed packing's A is
-ill-conditioned mostly within a body's rows, which those blocks hold. The expansion's projected
-step then goes along z too, −λ z projected on y ≥ 0 with λ = 1, ½, ¼, ⅛, the first that brings
-the quadratic below its value at the boundary (the ᾱ step if none does): the preconditioned
-direction meets a bound within a step or two in a pressed packing, and with the ᾱ step along φ
-after it nearly every iteration would be a short expansion. Small solves (most of a Newton
-loop's) end before the blocks are built; with ``preconditioner = "none"``, or without soft
-bodies, the method is the plain one.
-
 Each iteration costs one product with W_nn (:func:`_times`), in the cheapest form for each part
 (:func:`compute.contact.delassus.normal_groups`): the rigid and wall dofs' part H_nᵀ D H_n
 through the 1x1 compliance blocks D (a scatter and a gather over the rows); a soft body with
@@ -62,7 +50,6 @@ import numpy as np
 
 from compute.contact.delassus import normal_groups, packed_times
 from compute.contact.residual import Measure, local_contact_error
-from compute.solvers.body_blocks import apply, no_preconditioner, preconditioner, row_groups
 from compute.solvers.interior_point import local_free_velocity
 from compute.solvers.nlgs import apply_impulses
 from compute.solvers.report import SolveReport
@@ -71,8 +58,6 @@ GAMMA = 1.0  # proportioning parameter Γ (Dostál's usual choice)
 EXPANSION = 1.9  # ᾱ ‖W‖: the projected gradient step of an expansion, in (0, 2)
 POWER_ITERATIONS = 6  # of the estimate of ‖W‖ (scaled), which is then raised by NORM_MARGIN
 NORM_MARGIN = 1.2
-PLAIN_ITERATIONS = 8  # a solve not converged after these builds the preconditioner (small solves skip its cost)
-PRECONDITIONED_TRIES = 4  # step lengths 1 … 1/8 of an expansion along the preconditioned gradient
 
 
 @dataclass(frozen=True)
@@ -83,8 +68,6 @@ class MPRGP:
     tolerance: float
     max_iterations: int
     measure: Measure = Measure()
-    preconditioner: str = "bodies"  # or "none" (module docstring)
-    plain_iterations: int = PLAIN_ITERATIONS
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem without friction) from its warm-start impulses, in place."""
@@ -98,9 +81,8 @@ class MPRGP:
             r[:, 0] = problem.impulse[:, 0]
             groups = normal_groups(problem.dof, problem.hn, c.block, c.start, c.offset, c.values)
             op = (problem.dof, problem.hn, *c.arrays(), *groups)
-            after = self.plain_iterations if self.preconditioner == "bodies" else -1
             iterations = mprgp(op, np.ascontiguousarray(problem.W[:, 0, 0]), q, r,
-                               *self.measure.codes(problem, self.tolerance), self.max_iterations, after)
+                               *self.measure.codes(problem, self.tolerance), self.max_iterations)
             problem.impulse[:] = r
         v = problem.free_velocity()
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *c.arrays())
@@ -183,75 +165,7 @@ def _error(kind, tol, bound, wnn, s, y, g, q, u, w, r, mu, size):
 
 
 @numba.njit(cache=True)
-def unit_scaling(wnn):
-    """s (nc,) = 1 / sqrt(W_nn,c) (1 where W_nn,c = 0): S W_nn S has a unit diagonal."""
-    s = np.empty(wnn.size)
-    for c in range(wnn.size):
-        s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
-    return s
-
-
-@numba.njit(cache=True)
-def _expansion_length(op, s, work, ap):
-    """ᾱ = EXPANSION / (NORM_MARGIN ‖A‖), ‖A‖ estimated by POWER_ITERATIONS power iterations
-    (unit diagonal: at least 1); ``ap`` (nc,) work."""
-    p = np.ones(ap.size)
-    norm = 1.0
-    for _ in range(POWER_ITERATIONS):
-        _times(op, s, p, work, ap)
-        size = np.sqrt(np.dot(ap, ap))
-        if size == 0.0:
-            break
-        norm = max(norm, size / np.sqrt(np.dot(p, p)))
-        p = ap / size
-    return EXPANSION / (NORM_MARGIN * norm)
-
-
-@numba.njit(cache=True)
-def _expansion(op, s, work, b, y_half, g_half, f_half, alpha_bar, y, g):
-    """The projected free-gradient step of an expansion from (y_half, g_half), into (y, g):
-    ᾱ halved until the quadratic is at most ``f_half`` (the norm estimate was low). Returns ᾱ."""
-    while True:
-        for c in range(y.size):
-            y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
-        _times(op, s, y, work, g)
-        g += b
-        if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
-            return alpha_bar
-        alpha_bar *= 0.5
-
-
-@numba.njit(cache=True)
-def _preconditioned_expansion(op, pre, s, work, b, y_half, g_half, f_half, z, y, g):
-    """The expansion's step along the preconditioned free gradient z = M_F⁻¹ g at y_half
-    (:mod:`compute.solvers.body_blocks`), projected on y >= 0: lengths 1, 1/2, …, 1/8 (1 is the
-    step that solves each group's free block), the first at which the quadratic is at most
-    ``f_half``, into (y, g). False if none is (then y, g are to be overwritten)."""
-    _direction(pre, True, y_half, g_half, z)
-    step = 1.0
-    for _ in range(PRECONDITIONED_TRIES):
-        for c in range(y.size):
-            y[c] = max(y_half[c] - step * z[c], 0.0) if y_half[c] > 0.0 else 0.0
-        _times(op, s, y, work, g)
-        g += b
-        if 0.5 * np.dot(y, g + b) <= f_half:
-            return True
-        step *= 0.5
-    return False
-
-
-@numba.njit(cache=True)
-def _direction(pre, preconditioned, y, g, out):
-    """out = M_F⁻¹ g (``preconditioned``) or g on the free set F = {y > 0}, 0 elsewhere."""
-    if preconditioned:
-        apply(pre, y, g, out)
-    else:
-        for c in range(y.size):
-            out[c] = g[c] if y[c] > 0.0 else 0.0
-
-
-@numba.njit(cache=True)
-def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations, precondition_after):
+def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     """Minimise ½ r_nᵀ W_nn r_n + q_nᵀ r_n over r_n ≥ 0 (module docstring), in place.
 
     ``op`` W_nn (:func:`_times`): the packed normal rows ``dof``, ``hn`` (nc, m) of H, the
@@ -263,11 +177,20 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations, precondition_after):
     measure. Returns the iterations (products with W, the norm estimate's left out)."""
     nc = q.shape[0]
     work = _work(op, nc)
-    s = unit_scaling(wnn)
+    s = np.empty(nc)
+    for c in range(nc):
+        s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
     ap = np.empty(nc)
-    pre = no_preconditioner()
-    preconditioned = False
-    alpha_bar = _expansion_length(op, s, work, ap)
+    p = np.ones(nc)  # power iterations for ‖S W S‖ (unit diagonal: at least 1)
+    norm = 1.0
+    for _ in range(POWER_ITERATIONS):
+        _times(op, s, p, work, ap)
+        size = np.sqrt(np.dot(ap, ap))
+        if size == 0.0:
+            break
+        norm = max(norm, size / np.sqrt(np.dot(p, p)))
+        p = ap / size
+    alpha_bar = EXPANSION / (NORM_MARGIN * norm)
     b = np.empty(nc)  # the scaled q_n
     y = np.empty(nc)
     for c in range(nc):
@@ -285,8 +208,8 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations, precondition_after):
     d = np.empty(nc)
     _times(op, s, y, work, g)
     g += b
-    z = np.empty(nc)
-    _direction(pre, preconditioned, y, g, p)
+    for c in range(nc):
+        p[c] = g[c] if y[c] > 0.0 else 0.0
     iterations = 0
     while True:
         if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol:
@@ -296,11 +219,6 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations, precondition_after):
                 break
         if iterations >= max_iterations:
             break
-        if iterations == precondition_after:
-            dof, hn, diagonal, block, start, offset, values = op[:7]
-            pre = preconditioner(*row_groups(dof, block), s, dof, hn, diagonal, block, start, offset, values)
-            preconditioned = pre[0].size > 1
-            _direction(pre, preconditioned, y, g, p)  # restart along the preconditioned gradient
         iterations += 1
         beta2 = 0.0
         phi_tilde_phi = 0.0
@@ -323,18 +241,28 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations, precondition_after):
                 for c in range(nc):
                     y[c] = max(y[c] - alpha_cg * p[c], 0.0)  # >= 0 but for rounding at alpha_cg = alpha_f
                 g -= alpha_cg * ap
-                _direction(pre, preconditioned, y, g, z)
-                gamma = np.dot(z, ap) / pap
+                num = 0.0
                 for c in range(nc):
-                    p[c] = z[c] - gamma * p[c]
+                    if y[c] > 0.0:
+                        num += g[c] * ap[c]
+                gamma = num / pap
+                for c in range(nc):
+                    p[c] = (g[c] if y[c] > 0.0 else 0.0) - gamma * p[c]
             else:  # expansion: to the boundary, then a projected free-gradient step
                 for c in range(nc):
                     y_half[c] = max(y[c] - alpha_f * p[c], 0.0)
                 g_half[:] = g - alpha_f * ap
                 f_half = 0.5 * np.dot(y_half, g_half + b)  # ½ yᵀ A y + bᵀ y
-                if not (preconditioned and _preconditioned_expansion(op, pre, s, work, b, y_half, g_half, f_half, z, y, g)):
-                    alpha_bar = _expansion(op, s, work, b, y_half, g_half, f_half, alpha_bar, y, g)
-                _direction(pre, preconditioned, y, g, p)
+                while True:
+                    for c in range(nc):
+                        y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
+                    _times(op, s, y, work, g)
+                    g += b
+                    if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
+                        break
+                    alpha_bar *= 0.5  # the norm estimate was low: ᾱ too long to descend
+                for c in range(nc):
+                    p[c] = g[c] if y[c] > 0.0 else 0.0
         else:  # proportioning: release contacts along the chopped gradient
             for c in range(nc):
                 d[c] = g[c] if y[c] <= 0.0 and g[c] < 0.0 else 0.0
@@ -345,7 +273,8 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations, precondition_after):
             alpha = np.dot(g, d) / dad
             y -= alpha * d
             g -= alpha * ap
-            _direction(pre, preconditioned, y, g, p)
+            for c in range(nc):
+                p[c] = g[c] if y[c] > 0.0 else 0.0
     for c in range(nc):
         r[c, 0] = s[c] * y[c]
         r[c, 1] = 0.0
