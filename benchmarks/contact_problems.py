@@ -29,6 +29,7 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import copy  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
@@ -37,6 +38,9 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+sys.path.append(str(Path(__file__).resolve().parent))  # benchmarks/: the shared helpers
+import checkout  # noqa: E402
 
 FIELDS = ("dof", "hn", "ht", "v_free", "gap_term", "mu")
 COMPLIANCE = ("order", "index", "diagonal", "block", "start", "offset", "values")
@@ -70,15 +74,10 @@ def load(path: Path):
 
 
 def export(a) -> None:
-    import contextlib
-
     from compute.run import Run
 
     with contextlib.ExitStack() as stack:
         if a.run:
-            sys.path.insert(0, str(Path(__file__).resolve().parent))
-            import checkout
-
             run = stack.enter_context(checkout.resumed(a.run))
         else:
             tmp = stack.enter_context(tempfile.TemporaryDirectory())
@@ -94,10 +93,7 @@ def export(a) -> None:
                 st = run.state
                 if (a.step is not None and st.step + 1 >= a.step) or (a.stage is not None and st.stage >= a.stage):
                     path = a.file if a.count == 1 else a.file.with_name(f"{a.file.stem}_{len(saved):03d}.npz")
-                    kept = copy.deepcopy(problem)
-                    if not a.warm:
-                        kept.impulse[:] = 0.0
-                    save(kept, path, a.warm, scene=str(a.scene or a.run), step=st.step + 1, stage=st.stage,
+                    save(problem, path, a.warm, scene=str(a.scene or a.run), step=st.step + 1, stage=st.stage,
                          contacts=len(problem), dofs=len(problem.compliance))
                     saved.append(path)
                     if len(saved) == a.count:
@@ -175,6 +171,8 @@ def main() -> None:
     c.add_argument("--screening", nargs="+", type=float, default=[0.0],
                    help="solver.contact_screening margins to solve with (0: every row; compute.solvers.screened)")
     a = ap.parse_args()
+    if a.command == "export" and a.count < 1:
+        ap.error(f"export --count: expected at least 1 problem to save, got {a.count}")
     sys.path.insert(0, os.getcwd())  # the checkout being measured
     export(a) if a.command == "export" else compare(a)
 
