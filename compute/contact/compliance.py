@@ -109,36 +109,39 @@ def add_contact_impulse(v, c, dn, dt, dof, hn, ht, diagonal, block, start, offse
 
 
 @numba.njit(cache=True, inline="always")
-def entry(dk, dl, diagonal, block, start, offset, values):
-    """M̂⁻¹[dk, dl] (packed dofs)."""
-    bk = block[dk]
-    if bk < 0:
-        return diagonal[dk] if dk == dl else 0.0
-    if block[dl] != bk:
-        return 0.0
-    s0 = start[bk]
-    return values[offset[bk] + (dk - s0) * (start[bk + 1] - s0) + dl - s0]
-
-
-@numba.njit(cache=True, inline="always")
 def contact_coupling(c, d, dof, hn, ht, diagonal, block, start, offset, values):
-    """(nn, nt, tn, tt): the (2, 2) block H_cᵀ M̂⁻¹ H_d between contacts c and d (packed rows)."""
+    """(nn, nt, tn, tt): the (2, 2) block H_cᵀ M̂⁻¹ H_d between contacts c and d (packed rows).
+    Per dof of c, its row of M̂⁻¹ is located once: a 1x1 block couples with that same dof of d
+    only, a dense block with the dofs of d in it: a lookup of the general entry per pair of dofs
+    made the Delassus blocks a large part of a small mixture's time (benchmarks/results/delassus_blocks.md)."""
     nn = nt = tn = tt = 0.0
     m = dof.shape[1]
     for a in range(m):
         da = dof[c, a]
         if da < 0:
             continue
+        cn, ct = hn[c, a], ht[c, a]
+        b = block[da]
+        if b < 0:
+            for e in range(m):
+                if dof[d, e] == da:
+                    w = diagonal[da]
+                    nn += cn * w * hn[d, e]
+                    nt += cn * w * ht[d, e]
+                    tn += ct * w * hn[d, e]
+                    tt += ct * w * ht[d, e]
+            continue
+        s0 = start[b]
+        row = offset[b] + (da - s0) * (start[b + 1] - s0) - s0  # row da of the block, indexed by dof
         for e in range(m):
             de = dof[d, e]
-            if de < 0:
+            if de < 0 or block[de] != b:
                 continue
-            w = entry(da, de, diagonal, block, start, offset, values)
-            if w != 0.0:
-                nn += hn[c, a] * w * hn[d, e]
-                nt += hn[c, a] * w * ht[d, e]
-                tn += ht[c, a] * w * hn[d, e]
-                tt += ht[c, a] * w * ht[d, e]
+            w = values[row + de]
+            nn += cn * w * hn[d, e]
+            nt += cn * w * ht[d, e]
+            tn += ct * w * hn[d, e]
+            tt += ct * w * ht[d, e]
     return nn, nt, tn, tt
 
 
