@@ -5,11 +5,12 @@ written as DIR/runs/<name>/scene with the loading program: pressure stages P/E l
 --p-min to --p-max, each equilibrated.
 
 Preparation (--preparation):
-- shared (the default): per seed, one packing jammed with friction --jamming-mu (default 0.2)
-  and one κ replacement (the same soft disks: the choice depends on the packing and the seed
-  only), compacted with each μ of the study. The paper's φ₀ for μ = 0 and 0.2 agree within
-  0.002 at every κ, which a frictionless jamming does not give: its two frictions start from one
-  prepared sample (study README, "Preparation").
+- shared (the default): per seed, one packing jammed with friction --jamming-mu (default 0:
+  the small default's calibration; the 1500-disk study gives 0.2) and one κ replacement (the
+  same soft disks: the choice depends on the packing and the seed only), compacted with each μ
+  of the study. The paper's φ₀ for μ = 0 and 0.2 agree within 0.002 at every κ, which jamming
+  each μ with its own friction does not give: its two frictions start from one prepared sample
+  (study README, "Preparation").
 - per-friction: each μ jams its own packing with friction μ.
 
 With --relax rigid, a run whose μ is below the jamming friction starts from the shared
@@ -53,9 +54,12 @@ from pathlib import Path
 import numpy as np
 
 # The small default: the whole study (4 kappa x 2 mu, one seed) to P/E = 1 in 7 stages (the
-# program of the 1500-disk runs), a few minutes on 2 cores (measured: README.md).
-DEFAULTS = {"n": 30, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
-            "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.2,
+# program of the 1500-disk runs) in minutes on 2 cores, on the smallest box whose prepared phi0
+# lies within 0.01 of the paper's (README.md, "Results of the small default"). Its packing is
+# jammed without friction: a calibration of the small box, whose walls loosen it; the 1500-disk
+# study jams with the study's friction, --jamming-mu 0.2 (README.md, "Preparation").
+DEFAULTS = {"n": 250, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
+            "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.0,
             "relax": "rigid"}
 # what a study.json written before a setting existed holds (--add compares with it)
 LEGACY_SETTINGS = {"preparation": "per-friction", "relax": "none"}

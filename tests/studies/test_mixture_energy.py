@@ -24,7 +24,7 @@ def test_a_frictionless_mixture_loses_energy_and_comes_to_rest(tmp_path):
     from compute.run import Run
 
     pre = subprocess.run([sys.executable, "-m", "studies.mixture_compaction.pre", "--workdir", str(tmp_path),
-                          "--kappa", "0.5", "--mu", "0", "--relax", "none", "--pressures", "0.001", "0.0031622776601683794"],
+                          "--n", "30", "--kappa", "0.5", "--mu", "0", "--jamming-mu", "0.2", "--relax", "none", "--pressures", "0.001", "0.0031622776601683794"],
                          cwd=ROOT, capture_output=True, text=True)
     assert pre.returncode == 0, pre.stderr
     run = Run(tmp_path / "runs" / "k0.5_mu0_s1" / "scene", tmp_path / "out", log=lambda msg: None)

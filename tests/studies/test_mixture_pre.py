@@ -138,14 +138,15 @@ def _Z_of_last_frame(out, n_particles: int, threshold: float = 1e-9) -> float:
 
 
 def test_shared_preparation_one_sample_for_both_frictions(tmp_path):
-    """The default: one packing jammed with μ = 0.2, one choice of soft disks, compacted with μ = 0
-    and 0.2; φ₀ and Z₀ of that prepared sample, the same for both frictions: φ₀ as post measures
-    it (soft disks by their element areas), Z₀ counted on the jamming's last frame."""
+    """The shared preparation (the default) with the 1500-disk study's jamming friction: one packing
+    jammed with μ = 0.2, one choice of soft disks, compacted with μ = 0 and 0.2; φ₀ and Z₀ of that
+    prepared sample, the same for both frictions: φ₀ as post measures it (soft disks by their
+    element areas), Z₀ counted on the jamming's last frame."""
     import json
 
     from compute.scene import read_scene
 
-    done = _pre(tmp_path)
+    done = _pre(tmp_path, "--jamming-mu", "0.2")
     assert done.returncode == 0, done.stderr
     study = json.loads((tmp_path / "study.json").read_text())
     assert (study["preparation"], study["jamming_mu"]) == ("shared", 0.2)
@@ -170,7 +171,7 @@ def test_shared_preparation_one_sample_for_both_frictions(tmp_path):
 
     bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--preparation", "per-friction")
     assert bad.returncode == 2 and "field 'preparation'" in bad.stderr
-    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--relax", "none")
+    bad = _pre(tmp_path, "--kappa", "0.2", "--add", "--jamming-mu", "0.2", "--relax", "none")
     assert bad.returncode == 2 and "field 'relax'" in bad.stderr
 
 
@@ -189,7 +190,7 @@ def test_frictionless_runs_start_from_the_relaxed_packing(tmp_path, relax):
     (no elastic energy to store), so the relaxed box is not larger than the jammed one."""
     import json
 
-    done = _pre(tmp_path, "--relax", relax)
+    done = _pre(tmp_path, "--jamming-mu", "0.2", "--relax", relax)
     assert done.returncode == 0, done.stderr
     study = json.loads((tmp_path / "study.json").read_text())
     runs = {(r["kappa"], r["mu"]): r for r in study["runs"]}

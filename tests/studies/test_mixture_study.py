@@ -21,7 +21,7 @@ from compute.scene import read_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDY = "studies.mixture_compaction"
-TINY = ["--n", "16", "--mu", "0.2", "--seeds", "1", "--pressures", "0.001", "0.002"]
+TINY = ["--n", "16", "--mu", "0.2", "--jamming-mu", "0.2", "--seeds", "1", "--pressures", "0.001", "0.002"]
 
 
 def script(name, workdir, *extra, **kw):
@@ -184,9 +184,9 @@ def test_runs_added_to_a_study_keep_the_others(tmp_path):
     assert (w / "runs" / "k1_mu0.2_s1" / "out" / "COMPLETE").is_file()
     assert (first / "out" / "COMPLETE").stat().st_mtime_ns == stamps[first / "out" / "COMPLETE"]
 
-    # a frictionless run compressed from the frictional packing (--jamming-mu): no new jamming, the
-    # packing relaxed without friction with rigid disks (--relax rigid), the same soft disks moved
-    script("pre", w, *TINY, "--kappa", "1", "--mu", "0", "--jamming-mu", "0.2", "--add")
+    # a frictionless run compressed from the frictional packing (TINY's --jamming-mu): no new jamming,
+    # the packing relaxed without friction with rigid disks (--relax rigid), the same soft disks moved
+    script("pre", w, *TINY, "--kappa", "1", "--mu", "0", "--add")
     study = json.loads((w / "study.json").read_text())
     added = study["runs"][-1]
     assert (added["name"], added["mu"], added["jamming_mu"]) == ("k1_mu0_s1", 0.0, 0.2) and len(study["jamming"]) == 1
