@@ -58,7 +58,7 @@ import numpy as np
 # lies within 0.01 of the paper's (README.md, "Results of the small default"). Its packing is
 # jammed without friction: a calibration of the small box, whose walls loosen it; the 1500-disk
 # study jams with the study's friction, --jamming-mu 0.2 (README.md, "Preparation").
-DEFAULTS = {"n": 250, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
+DEFAULTS = {"n": 225, "kappa": [0.2, 0.5, 0.8, 1.0], "mu": [0.0, 0.2], "seeds": [1],
             "p_min": 1e-3, "p_max": 1.0, "stages": 7, "preparation": "shared", "jamming_mu": 0.0,
             "relax": "rigid"}
 # what a study.json written before a setting existed holds (--add compares with it)
