@@ -113,10 +113,10 @@ def test_single_particle_default(tmp_path):
 
 # The README's "Results of the small default": the prepared φ₀ per κ (one preparation shared by
 # both frictions), the first stage's φ per (κ, μ), and ξ, α fitted over all runs
-README_MIXTURE_PHI0 = {0.2: "0.8100", 0.5: "0.8060", 0.8: "0.8020", 1.0: "0.7994"}
-README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.8135", (0.2, 0.2): "0.8123", (0.5, 0.0): "0.8146", (0.5, 0.2): "0.8125",
-                            (0.8, 0.0): "0.8157", (0.8, 0.2): "0.8131", (1.0, 0.0): "0.8168", (1.0, 0.2): "0.8141"}
-README_MIXTURE_XI_ALPHA = (8.5, 0.81)
+README_MIXTURE_PHI0 = {0.2: "0.8129", 0.5: "0.8089", 0.8: "0.8049", 1.0: "0.8023"}
+README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.8172", (0.2, 0.2): "0.8148", (0.5, 0.0): "0.8177", (0.5, 0.2): "0.8151",
+                            (0.8, 0.0): "0.8187", (0.8, 0.2): "0.8159", (1.0, 0.0): "0.8202", (1.0, 0.2): "0.8174"}
+README_MIXTURE_XI_ALPHA = (8.7, 0.81)
 # Table 1 of the paper: φ₀ per (κ, μ) and the range of its Z₀
 PAPER_TABLE_PHI0 = {(0.2, 0.0): 0.815, (0.5, 0.0): 0.811, (0.8, 0.0): 0.807, (1.0, 0.0): 0.807,
                     (0.2, 0.2): 0.814, (0.5, 0.2): 0.811, (0.8, 0.2): 0.807, (1.0, 0.2): 0.805}
