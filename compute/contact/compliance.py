@@ -122,22 +122,20 @@ def contact_coupling(c, d, dof, hn, ht, diagonal, block, start, offset, values):
             continue
         cn, ct = hn[c, a], ht[c, a]
         b = block[da]
-        if b < 0:
-            for e in range(m):
-                if dof[d, e] == da:
-                    w = diagonal[da]
-                    nn += cn * w * hn[d, e]
-                    nt += cn * w * ht[d, e]
-                    tn += ct * w * hn[d, e]
-                    tt += ct * w * ht[d, e]
-            continue
-        s0 = start[b]
-        row = offset[b] + (da - s0) * (start[b + 1] - s0) - s0  # row da of the block, indexed by dof
+        row = 0  # where row da of its dense block starts, minus the block's first dof
+        if b >= 0:
+            s0 = start[b]
+            row = offset[b] + (da - s0) * (start[b + 1] - s0) - s0
         for e in range(m):
             de = dof[d, e]
-            if de < 0 or block[de] != b:
-                continue
-            w = values[row + de]
+            if b < 0:  # a 1x1 block: da itself only
+                if de != da:
+                    continue
+                w = diagonal[da]
+            else:
+                if de < 0 or block[de] != b:
+                    continue
+                w = values[row + de]
             nn += cn * w * hn[d, e]
             nt += cn * w * ht[d, e]
             tn += ct * w * hn[d, e]
