@@ -14,7 +14,9 @@ same distance from a ten times tighter test (benchmarks/results/stage_window_144
 
 A run asked to stop (SIGTERM, or a file OUT/STOP, read after every step) stops at the end of the
 step it is computing: it writes a checkpoint, then dies by SIGTERM, as a killed run (nothing
-marked, studies.dispatch resumes it), having lost nothing. A second SIGTERM kills it at once.
+marked, studies.dispatch resumes it), having lost nothing. A second SIGTERM kills it at once,
+also inside a compiled kernel (:mod:`compute.stop_watch`), losing the steps since its last
+checkpoint.
 Why: a step of a large soft mixture at high pressure takes minutes, and a machine given back at
 a fixed time should lose none of them; the file is how a study's dispatcher, which does not know
 the processes its workers started, asks its runs to stop.
@@ -36,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from compute import files, output, output_folder, schema, stall, summary, wall_crossing
+from compute.stop_watch import second_sigterm_kills
 from compute.threads import ThreadsFile
 from compute.errors import OutputFolderError, OutputWriteError, SimulationError
 from compute.bodies.soft import mass_scale
@@ -154,10 +157,19 @@ class Run:
         written, write FAILED with the diagnosis and raise SimulationError."""
         stages = 1 if self.scene.walls.control == "velocity" else len(self.scene.loading.pressures)
         self.progress = RunProgress(self.out, stages, self._display)
-        finished = False
         on_main = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, self._ask_stop) if on_main else None
         self._threads.poll()
+        try:
+            with second_sigterm_kills():
+                return self._execute()
+        finally:
+            if on_main:
+                signal.signal(signal.SIGTERM, previous)
+
+    def _execute(self) -> State:
+        """The program of :meth:`execute`, its signal handling set up."""
+        finished = False
         try:
             stall_diagnosis = None
             if self.scene.walls.control == "velocity":
@@ -181,8 +193,6 @@ class Run:
             self._record_failure(exc)
             raise
         finally:
-            if on_main:
-                signal.signal(signal.SIGTERM, previous)
             if not finished:
                 self._best_effort(lambda: self.progress.finish("failed"))
             self._best_effort(self.history.close)
