@@ -81,7 +81,8 @@ from pathlib import Path
 from compute.progress import Display, read_progress
 from compute.summary import run_status
 
-__all__ = ["RunSpec", "RunResult", "core_shares", "dispatch", "execute_run", "local_cluster", "run_times"]
+__all__ = ["RunSpec", "RunResult", "child_environment", "core_shares", "dispatch", "execute_run", "local_cluster",
+           "run_times"]
 
 LOG = "compute.log"
 POLL = 2.0  # seconds between two looks at the running runs' progress
@@ -167,6 +168,27 @@ def _tail(path: Path, lines: int = 15) -> str:
         return ""
 
 
+def child_environment(threads: int) -> dict[str, str]:
+    """The environment of a run's child process: this process's, with ``threads`` threads for
+    OpenMP and BLAS, numba's pool sized for the freed cores (module docstring), this package
+    importable, and without the malloc settings a Dask worker runs under.
+
+    Why the last: Dask's nanny starts its workers with ``MALLOC_TRIM_THRESHOLD_`` = 65536 (to
+    give a worker's freed memory back to the system), and a child inherits it. Setting it turns
+    off glibc's dynamic mmap threshold, so that every array above 128 kB a run allocates is
+    mapped and unmapped again, its pages faulted in anew each time: a 1500-disk run spent 30 %
+    of its CPU time in the kernel (benchmarks/results/dispatch_malloc.md)."""
+    env = dict(os.environ)
+    env.pop("MALLOC_TRIM_THRESHOLD_", None)
+    env.update({k: str(int(threads)) for k in _THREAD_VARIABLES})
+    env["NUMBA_NUM_THREADS"] = str(_pool_size(threads))  # room for the freed cores (module docstring)
+    env["SOFTRIGID_PARENT_PID"] = str(os.getpid())
+    # the child imports this package whatever its working folder: the folder holding studies/ first
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).resolve().parents[1])] +
+                                        [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    return env
+
+
 def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_failed: bool = False,
                 checkpoint_minutes: float | None = None) -> dict:
     """Run one scene in a child process (module docstring); never raises for a failed run.
@@ -181,13 +203,7 @@ def execute_run(scene: str | Path, out: str | Path, threads: int = 1, retry_fail
         return {"status": "failed", "message": "not retried (FAILED exists): " + _tail(out / "FAILED", 3).strip()}
     out.mkdir(parents=True, exist_ok=True)
     resumed = status == "partial"
-    env = dict(os.environ)
-    env.update({k: str(int(threads)) for k in _THREAD_VARIABLES})
-    env["NUMBA_NUM_THREADS"] = str(_pool_size(threads))  # room for the freed cores (module docstring)
-    env["SOFTRIGID_PARENT_PID"] = str(os.getpid())
-    # the child imports this package whatever its working folder: the folder holding studies/ first
-    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).resolve().parents[1])] +
-                                        [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    env = child_environment(threads)
     cmd = [sys.executable, "-m", "studies.dispatch", str(scene), str(out), "--threads", str(int(threads))]
     if retry_failed:
         cmd.append("--retry-failed")

@@ -88,6 +88,22 @@ def test_local_cluster_workers_run_with_dask_monitoring_slowed():
     assert {key: dask.config.get(key) for key in QUIET} == before != QUIET
 
 
+def test_runs_do_not_inherit_the_workers_malloc_setting():
+    """A Dask worker runs with MALLOC_TRIM_THRESHOLD_ set (its nanny's default), which turns off
+    glibc's dynamic mmap threshold; a run started by it gets the environment without it, and the
+    threads it was given."""
+    import os
+
+    from dask.distributed import Client
+
+    from studies.dispatch import child_environment, local_cluster
+
+    with local_cluster(1) as cluster, Client(cluster) as client:
+        worker, child = client.submit(lambda: (dict(os.environ), child_environment(1))).result()
+    assert "MALLOC_TRIM_THRESHOLD_" in worker
+    assert "MALLOC_TRIM_THRESHOLD_" not in child and child["OMP_NUM_THREADS"] == "1"
+
+
 def test_a_signal_stops_the_study_after_the_running_runs_step(tmp_path):
     """SIGTERM to the dispatching process: the queued run is not started; the running one is asked
     by OUT/STOP to stop after its step, checkpoints and dies by SIGTERM, recorded as killed with
