@@ -49,10 +49,12 @@ def second_sigterm_kills():
         watcher = subprocess.Popen([sys.executable, "-I", "-S", "-c", WATCHER], stdin=read)
     finally:
         os.close(read)
-    previous = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+    previous = None
     try:
+        previous = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
         yield
-    finally:
-        signal.set_wakeup_fd(previous)
+    finally:  # the pipe closed in any case: the watcher reads its end and exits
+        if previous is not None:
+            signal.set_wakeup_fd(previous)
         os.close(write)
         watcher.wait()
