@@ -27,7 +27,14 @@ Stopping: the natural-map error of all contacts (:mod:`compute.contact.residual`
 ``tolerance``, checked after every sweep. A problem of one block stops after one sweep whatever
 its error (its block solve was the whole solve: repeating a failed one would not help, and each
 costs up to BLOCK_ITERATIONS Newton steps and FALLBACK_SWEEPS point sweeps); a miss shows as
-an error above tolerance.
+an error above tolerance. With ``stall_window`` > 0 it also stops, above tolerance, when the
+error checked every stall_window sweeps stops falling or falls too slowly to reach the tolerance
+within ``projected_limit`` sweeps (the NLGS stall test, :func:`compute.solvers.nlgs.stalled`).
+Why: as the fallback of a stalled NLGS (:mod:`compute.solvers.nlgs_then`) on a packing of finely
+meshed soft disks at high pressure, block Gauss–Seidel can creep towards the tolerance for
+hundreds of sweeps, each costing as much as a hundred or more point sweeps: given NLGS's budget
+of sweeps, one contact solve ran for most of an hour. A stalled solve ends as a miss, which the
+next Newton iteration and the step control absorb (benchmarks/results/block_gs_stall.md).
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ import numpy as np
 from compute.contact.compliance import add_contact_impulse, block_delassus
 from compute.contact.rows import local_velocity
 from compute.solvers.report import SolveReport
-from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb
+from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb, stalled
 from compute.contact.residual import Measure, contact_error, relative, squared_error
 
 BLOCK_ITERATIONS = 30
@@ -50,11 +57,14 @@ FALLBACK_SWEEPS = 200
 @dataclass(frozen=True)
 class BlockGS:
     """Block Gauss–Seidel (module docstring): stops when the natural-map error is at most
-    ``tolerance`` or after ``max_sweeps`` sweeps over the blocks."""
+    ``tolerance``, after ``max_sweeps`` sweeps over the blocks, or, with ``stall_window`` > 0,
+    when it stalls."""
 
     tolerance: float
     max_sweeps: int
     measure: Measure = Measure()
+    stall_window: int = 0  # sweeps between stall checks (0: none)
+    projected_limit: int = 0  # with stall_window: also stalled when the tolerance is this many sweeps away
 
     def solve(self, problem) -> SolveReport:
         """Solve ``problem`` (a ContactProblem) from its warm-start impulses, in place."""
@@ -66,7 +76,8 @@ class BlockGS:
         apply_impulses(problem.dof, problem.hn, problem.ht, problem.impulse, v, *carr)
         sweeps, error = block_gs_solve(order, bstart, wb, woff, problem.dof, problem.hn, problem.ht, problem.W,
                                        problem.gap_term, problem.mu, problem.impulse, v, v_free, *carr,
-                                       *self.measure.codes(problem, self.tolerance), self.max_sweeps)
+                                       *self.measure.codes(problem, self.tolerance), self.max_sweeps,
+                                       self.stall_window, self.projected_limit)
         return SolveReport(problem.velocities(v), sweeps, error)
 
 
@@ -211,7 +222,7 @@ def solve_block(W, b, mu, r, tol):
 
 @numba.njit(cache=True)
 def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, start,
-                   offset, values, kind, tol, bound, max_sweeps):
+                   offset, values, kind, tol, bound, max_sweeps, stall_window, projected_limit):
     """Solve the contact problem in place (module docstring); rows over packed dofs, v (n,)
     packed velocities that include the warm-start impulses, ``v_free`` (n,); the error measure
     (kind, tol, bound) of :meth:`compute.contact.residual.Measure.codes`. Returns (sweeps, error)."""
@@ -219,6 +230,7 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
     error = contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
     if error <= tol:
         return 0, error
+    best = np.inf  # the last stall check's error
     for sweep in range(1, max_sweeps + 1):
         for B in range(nb):
             k = bstart[B + 1] - bstart[B]
@@ -250,4 +262,8 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
         error = contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
         if error <= tol or nb == 1:  # one block: its solve was the whole solve
             return sweep, error
+        if stall_window > 0 and sweep % stall_window == 0 and sweep < max_sweeps:
+            if stalled(error, best, tol, stall_window, projected_limit, max_sweeps - sweep):
+                return sweep, error
+            best = error
     return max_sweeps, error

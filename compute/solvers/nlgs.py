@@ -87,6 +87,19 @@ def local_signorini_coulomb(wnn, wnt, wtn, wtt, bn, bt, mu):
     return -bn / wnn, 0.0  # unreachable for a positive definite W; frictionless fallback
 
 
+@numba.njit(cache=True, inline="always")
+def stalled(error, best, tol, window, projected_limit, sweeps_left):
+    """The stall test of an iteration whose error is checked every ``window`` sweeps (module
+    docstring): ``error`` not below ``best``, the last check's (it oscillates), or, with
+    ``projected_limit`` > 0, the contraction since that check, kept up, needing more than
+    min(projected_limit, ``sweeps_left``) further sweeps to reach ``tol`` (converging, but too
+    slowly for the caller)."""
+    if error >= best:
+        return True
+    return projected_limit > 0 and best < np.inf and \
+        np.log(tol / error) / np.log(error / best) * window > min(projected_limit, sweeps_left)
+
+
 @numba.njit(cache=True)
 def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, start, offset, values, kind, tol,
                bound, max_sweeps, relax, stall_window, projected_limit):
@@ -99,8 +112,7 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, star
     (kind, tol, bound) of :meth:`compute.contact.residual.Measure.codes`. Returns (sweeps, error
     at the stop); stalled (module docstring) if the error is above tol before max_sweeps.
     """
-    best = np.inf  # smallest error of the stall checks
-    last = np.inf  # error of the last stall check
+    best = np.inf  # smallest error of the stall checks, the last one's while none has stalled
     for sweep in range(1, max_sweeps + 1):
         num = 0.0
         den = 0.0
@@ -126,13 +138,9 @@ def nlgs_solve(dof, hn, ht, W, gap_term, mu, r, v, v_free, diagonal, block, star
             if change <= tol and error <= tol:
                 return sweep, error
             if stall_check:
-                if error >= best:
+                if stalled(error, best, tol, stall_window, projected_limit, max_sweeps - sweep):
                     return sweep, error
-                if projected_limit > 0 and last < np.inf and np.log(tol / error) / np.log(error / last) \
-                        * stall_window > min(projected_limit, max_sweeps - sweep):
-                    return sweep, error  # converging, but too slowly to reach tol within the limit
                 best = error
-                last = error
     return max_sweeps, contact_error(kind, tol, bound, dof, hn, ht, W, gap_term, mu, r, v, v_free)
 
 

@@ -7,7 +7,8 @@ takes over from its iterate:
 - block Gauss–Seidel (:mod:`compute.solvers.block_gs`, ``nlgs_block``): in a compacting soft
   mixture NLGS's frictional iteration can oscillate at an error of 1e-3–1e-2 on contacts of
   nearly singular soft corners, where block Gauss–Seidel, which solves the contacts of each soft
-  body together, converges (benchmarks/results/design_figures.md);
+  body together, converges (benchmarks/results/design_figures.md); where it does not either, it
+  stops when its own error stalls (:mod:`compute.solvers.block_gs`), and the solve is a miss;
 - an interior point (``nlgs_ip``): in a large or stiff packing NLGS converges, but at a rate
   that needs tens of thousands of sweeps, while an interior point's iterations do not grow with
   the packing. NLGS hands over when its last ``STALL_WINDOW`` sweeps, kept up, would not reach
@@ -38,6 +39,8 @@ from compute.solvers.nlgs import NLGS
 from compute.contact.residual import Measure
 
 STALL_WINDOW = 50  # sweeps between NLGS's stall checks
+BLOCK_STALL_WINDOW = 10  # nlgs_block: sweeps between the block fallback's stall checks
+BLOCK_PROJECTED_SWEEPS = 100  # and the most further sweeps it may be projected to need
 FALLBACK_IP_ITERATIONS = 40  # nlgs_ip: about twice what the interior point needs where it converges
 FALLBACK_CONE_ITERATIONS = 150  # and the cone fixed point (contact_problems.md)
 
@@ -63,9 +66,10 @@ class NLGSThen:
 
     @classmethod
     def block(cls, tolerance: float, max_sweeps: int, relaxation: float = 1.0, measure: Measure = Measure()):
-        """``nlgs_block``: NLGS until it oscillates, then block Gauss–Seidel."""
+        """``nlgs_block``: NLGS until it oscillates, then block Gauss–Seidel until it converges
+        or stalls in its turn (compute.solvers.block_gs; a block sweep costs many point sweeps)."""
         return cls(NLGS(tolerance, max_sweeps, relaxation, STALL_WINDOW, measure),
-                   (BlockGS(tolerance, max_sweeps, measure),))
+                   (BlockGS(tolerance, max_sweeps, measure, BLOCK_STALL_WINDOW, BLOCK_PROJECTED_SWEEPS),))
 
     @classmethod
     def interior_point(cls, tolerance: float, max_sweeps: int, relaxation: float = 1.0,

@@ -385,14 +385,19 @@ def copy_problem(p):
     return copy.deepcopy(p)
 
 
-def chain_problem(n: int = 60):
+def chain_problem(n: int = 60, blocks: bool = False):
     """n unit masses in a row, all moving towards a fixed wall and stopped by it (frictionless):
     Gauss–Seidel carries the load one contact per sweep, so it needs of the order of n² sweeps,
-    while W (tridiagonal, positive definite) is easy for a global method."""
+    while W (tridiagonal, positive definite) is easy for a global method. With ``blocks`` each
+    mass is a dense compliance block of its own (a body): block Gauss–Seidel's blocks are then
+    the contacts one by one (the first two together), and it carries the load as slowly."""
     from compute.contact.compliance import Compliance
     from compute.contact.problem import ContactProblem
 
-    comp = Compliance.build(n, [(np.arange(n), np.ones(n))])
+    if blocks:
+        comp = Compliance.build(n, dense=[(np.arange(n + 1), np.arange(n), np.ones(n))])
+    else:
+        comp = Compliance.build(n, [(np.arange(n), np.ones(n))])
     m = 8
     dof = np.full((n, m), -1)
     hn = np.zeros((n, m))
@@ -421,6 +426,35 @@ def test_nlgs_hands_a_slow_solve_to_the_interior_point():
     report = NLGSThen.interior_point(1e-10, 5 * PROJECTED_SWEEPS).solve(p)  # a budget NLGS would miss
     assert report.residual <= 1e-10 and error_of(p, p.impulse) <= 1e-10
     assert report.iterations < plain.iterations / 10
+
+
+def test_stall_test():
+    """The stall test shared by NLGS and block Gauss–Seidel (compute.solvers.nlgs.stalled),
+    checked every 10 sweeps, against the arithmetic: an error not below the last check's has
+    stalled; one that fell from 1e-2 to 1e-3 in 10 sweeps reaches 1e-6 in 30 more (stalled only
+    if fewer are allowed); from 1e-2 to 9e-3 it would need 864 more (ln(1e-6 / 9e-3) / ln 0.9 = 86.4
+    windows)."""
+    from compute.solvers.nlgs import stalled
+
+    assert stalled(2e-3, 2e-3, 1e-6, 10, 0, 1000) and stalled(3e-3, 2e-3, 1e-6, 10, 0, 1000)
+    assert not stalled(1e-3, np.inf, 1e-6, 10, 100, 1000)  # the first check: no contraction known yet
+    assert not stalled(1e-3, 1e-2, 1e-6, 10, 0, 5)  # without a projected limit only oscillation stops
+    assert not stalled(1e-3, 1e-2, 1e-6, 10, 31, 1000) and stalled(1e-3, 1e-2, 1e-6, 10, 29, 1000)
+    assert stalled(1e-3, 1e-2, 1e-6, 10, 1000, 29)  # the budget left counts too
+    assert not stalled(9e-3, 1e-2, 1e-6, 10, 870, 1000) and stalled(9e-3, 1e-2, 1e-6, 10, 860, 1000)
+
+
+def test_block_gauss_seidel_stops_when_it_stalls():
+    """On the chain of bodies block Gauss–Seidel contracts as slowly as point Gauss–Seidel
+    (thousands of sweeps to 1e-10). With a stall window and a projected limit it stops early,
+    above the tolerance, reporting the error of the impulses it leaves; without, it goes on to
+    the tolerance."""
+    plain = BlockGS(1e-10, 1_000_000).solve(chain_problem(blocks=True))
+    assert plain.residual <= 1e-10 and plain.iterations > 2000
+    p = chain_problem(blocks=True)
+    early = BlockGS(1e-10, 1_000_000, stall_window=10, projected_limit=1000).solve(p)
+    assert early.residual > 1e-10 and early.iterations < plain.iterations / 10
+    assert early.residual == pytest.approx(error_of(p, p.impulse), rel=1e-6)
 
 
 def test_nlgs_then_keeps_the_better_iterate():
