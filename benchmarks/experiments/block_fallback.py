@@ -3,13 +3,14 @@ NLGS hands over to it, sweep by sweep, and as the fallback stops it.
 
 Resumes RUN from its checkpoint (a temporary copy of RUN/out, benchmarks/checkout.py) with the
 code of the current directory's checkout, one thread, and takes up to --steps steps of its
-loading program. At the first solve where NLGS stalls, the problem as the fallback receives it
+loading program. At the --handover-th solve where NLGS stalls (the earlier ones solved as the
+run solves them), the problem as the fallback receives it
 (NLGS's iterate as its warm start) is solved twice from that same start: by block Gauss–Seidel
 one sweep at a time for --sweeps sweeps, printing each sweep's error (natural map, the scene's
 measure) and seconds; and by the fallback as ``nlgs_block`` configures it (its stall test
 included, in checkouts that have one). Prints one JSON line.
 
-    python benchmarks/experiments/block_fallback.py --run V/v4 --steps 120 --sweeps 230
+    python benchmarks/experiments/block_fallback.py --run V/v4 --steps 120 --handover 2 --sweeps 230
 """
 
 from __future__ import annotations
@@ -39,12 +40,16 @@ class Handover(Exception):
 
 
 class Catch:
-    """Stands in for the block fallback: raises Handover with the problem it receives."""
+    """Stands in for the block fallback: solves the first ``handover`` - 1 problems it receives
+    by it, then raises Handover with the next one."""
 
-    def __init__(self, fallback):
-        self.fallback = fallback
+    def __init__(self, fallback, handover: int):
+        self.fallback, self.left = fallback, handover
 
     def solve(self, problem):
+        self.left -= 1
+        if self.left > 0:
+            return self.fallback.solve(problem)
         raise Handover(copy.deepcopy(problem))
 
 
@@ -52,6 +57,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, required=True, help="a run folder with scene/ and out/ (with a checkpoint)")
     ap.add_argument("--steps", type=int, default=100, help="steps to take at most before a handover")
+    ap.add_argument("--handover", type=int, default=1, help="which handover to trace (1: the first)")
     ap.add_argument("--sweeps", type=int, default=200, help="block sweeps to trace one by one")
     a = ap.parse_args()
     sys.path.insert(0, os.getcwd())  # the checkout being measured
@@ -64,7 +70,7 @@ def main() -> None:
         if not isinstance(solver, NLGSThen):
             raise SystemExit(f"{a.run}: the run's contact solver is {type(solver).__name__}, not nlgs_block's")
         fallback = solver.fallbacks[0]
-        run.stepper.solver = replace(solver, fallbacks=(Catch(fallback),))
+        run.stepper.solver = replace(solver, fallbacks=(Catch(fallback, a.handover),))
         st, pressures = run.state, run.scene.loading.pressures
         result["from_step"] = st.step
         problem = None
