@@ -542,6 +542,50 @@ def test_mprgp_carries_a_load_down_a_chain_in_few_iterations():
     assert report.iterations < nlgs.iterations / 20
 
 
+def fan_problem(k: int = 40, seed: int = 0):
+    """k frictionless contacts on one unit mass, u_n,c = v + g_c (a pile of redundant rows): the
+    unit-diagonal W_nn is the all-ones matrix, of norm k, so a first projected-gradient step of
+    MPRGP's longest length (1.9, unit diagonal) would be k / 2 times too long."""
+    from compute.contact.compliance import Compliance
+    from compute.contact.problem import ContactProblem
+
+    rng = np.random.default_rng(seed)
+    comp = Compliance.build(1, [(np.arange(1), np.ones(1))])
+    dof = np.full((k, 8), -1)
+    hn = np.zeros((k, 8))
+    dof[:, 0], hn[:, 0] = 0, 1.0
+    return ContactProblem.of_rows(dof, hn, np.zeros_like(hn), comp, np.array([-1.0]), rng.uniform(0.0, 0.5, k),
+                                  np.zeros(k), np.zeros((k, 2)))
+
+
+@pytest.mark.parametrize("warm", ("zero", "uniform", "one row"))
+def test_mprgp_finds_its_step_on_a_stiff_pile_of_rows(warm):
+    """The fan of 40 rows (‖W_nn‖ = 40 scaled): from cold, spread or concentrated warm starts
+    MPRGP reaches 1e-12 with the oracle's contact velocities in no more iterations than rows, its
+    step length found from the curvatures it meets (module docstring), not given beforehand."""
+    p = fan_problem()
+    p.impulse[:, 0] = {"zero": 0.0, "uniform": 0.05, "one row": np.eye(40)[7] * 3.0}[warm]
+    _, _, W, b = dense_form(p)
+    expected = solve_contact(W, b, p.mu)
+    report = MPRGP(1e-12, 200).solve(p)
+    assert report.residual <= 1e-12 and error_of(p, p.impulse) <= 1e-12
+    u, u_ref = W @ p.impulse.ravel() + b, W @ expected.ravel() + b
+    np.testing.assert_allclose(u, u_ref, rtol=0, atol=1e-9)
+    assert report.iterations <= 40
+
+
+def test_mprgp_keeps_a_warm_start_that_solves_the_problem():
+    """Solved once, the same problem solved again from its impulses: no iteration, the same
+    impulses to the last bit (the warm start's check comes before any other work)."""
+    for seed in range(5):
+        p = frictionless_problem(400 + seed, "mixed")
+        MPRGP(1e-10, 2000).solve(p)
+        kept = p.impulse.copy()
+        again = MPRGP(1e-10, 2000).solve(p)
+        assert again.iterations == 0 and again.residual <= 1e-10
+        np.testing.assert_array_equal(p.impulse, kept)
+
+
 def test_mprgp_refuses_friction():
     """A problem with a frictional contact is an error, not a frictionless answer to it."""
     p = random_problem(np.random.default_rng(5), "mixed", 8)
