@@ -39,9 +39,8 @@ lower bound of ‖W‖, 1 to start with: the unit diagonal), and an expansion wh
 has ᾱ dᵀW d > 2 dᵀd is redone with λ raised to that curvature. Each accepted expansion then
 lowers the quadratic (f(y) − f(y½) = g½ᵀd + ½ dᵀW d ≤ −dᵀd / ᾱ + ½ dᵀW d ≤ 0, d being a
 projected gradient step), and ᾱ is as long as the curvatures met allow, with no estimate of
-‖W‖ beforehand (without six power iterations per solve, the solves of a 1500-disk run at
-P/E = 0.1 take 31 % fewer products: benchmarks/results/mprgp_step_length.md); W d is free,
-the difference of the two gradients. A
+‖W‖ beforehand (six power iterations per solve, before; what that saves is in
+benchmarks/results/mprgp_step_length.md); W d is free, the difference of the two gradients. A
 warm start that already meets the tolerance costs one product.
 
 The method is warm-started from the problem's impulses (the last Newton iteration's). Stopping: the
