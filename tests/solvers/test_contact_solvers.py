@@ -544,8 +544,8 @@ def test_mprgp_carries_a_load_down_a_chain_in_few_iterations():
 
 def fan_problem(k: int = 40, seed: int = 0):
     """k frictionless contacts on one unit mass, u_n,c = v + g_c (a pile of redundant rows): the
-    unit-diagonal W_nn is the all-ones matrix, of norm k, so a first projected-gradient step of
-    MPRGP's longest length (1.9, unit diagonal) would be k / 2 times too long."""
+    unit-diagonal W_nn is the all-ones matrix, of norm k, so a projected-gradient step sized
+    from the unit diagonal alone would be k / 2 times too long."""
     from compute.contact.compliance import Compliance
     from compute.contact.problem import ContactProblem
 
@@ -561,8 +561,9 @@ def fan_problem(k: int = 40, seed: int = 0):
 @pytest.mark.parametrize("warm", ("zero", "uniform", "one row"))
 def test_mprgp_finds_its_step_on_a_stiff_pile_of_rows(warm):
     """The fan of 40 rows (‖W_nn‖ = 40 scaled): from cold, spread or concentrated warm starts
-    MPRGP reaches 1e-12 with the oracle's contact velocities in no more iterations than rows, its
-    step length found from the curvatures it meets (module docstring), not given beforehand."""
+    MPRGP reaches 1e-12 with the oracle's contact velocities in no more iterations than rows:
+    whatever way it sizes its expansion steps must hold on an operator whose norm is far from
+    its unit diagonal."""
     p = fan_problem()
     p.impulse[:, 0] = {"zero": 0.0, "uniform": 0.05, "one row": np.eye(40)[7] * 3.0}[warm]
     _, _, W, b = dense_form(p)
@@ -576,7 +577,7 @@ def test_mprgp_finds_its_step_on_a_stiff_pile_of_rows(warm):
 
 def test_mprgp_keeps_a_warm_start_that_solves_the_problem():
     """Solved once, the same problem solved again from its impulses: no iteration, the same
-    impulses to the last bit (the warm start's check comes before any other work)."""
+    impulses to the last bit (a solution is left as it is, not moved within the tolerance)."""
     for seed in range(5):
         p = frictionless_problem(400 + seed, "mixed")
         MPRGP(1e-10, 2000).solve(p)
