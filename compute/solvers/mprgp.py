@@ -17,8 +17,8 @@ gradient φ (g on F, 0 elsewhere), the chopped gradient β (min(g, 0) off F, 0 o
 reduced free gradient φ̃ = min(r / ᾱ, φ) on F:
 
 - proportional iterate (|β|² ≤ Γ² φ̃ᵀφ): a conjugate-gradient step on the free set, or, when it
-  would leave r ≥ 0, the feasible part of it followed by a projected gradient step of fixed
-  length ᾱ = 1.9 / ‖W‖ (an expansion: the free set may grow by many contacts at once);
+  would leave r ≥ 0, the feasible part of it followed by a projected gradient step of length
+  ᾱ = 1.9 / λ (an expansion: the free set may grow by many contacts at once);
 - otherwise a proportioning step along β (contacts released from r = 0).
 
 Each iteration costs one product with W_nn (:func:`_times`), in the cheapest form for each part
@@ -30,10 +30,20 @@ compliance block C_G, one dense product per body. Both are symmetric and kept as
 triangles, each value read once for two products (:func:`compute.contact.delassus.packed_times`):
 reading them is most of a product's cost once a packing's blocks outgrow the caches. (The whole W assembled in block-CSR,
 :class:`compute.contact.delassus.Delassus`, costs more to build for each new problem than the
-iterations it would save: a problem lasts about two solves in a mixture's Newton loop.) ‖W‖ is
-estimated by a few power iterations; an expansion that would not lower the quadratic, ᾱ being
-too long for the estimate, is redone with ᾱ halved. The method is warm-started from the
-problem's impulses (the last Newton iteration's). Stopping: the
+iterations it would save: a problem lasts about two solves in a mixture's Newton loop.)
+
+The step ᾱ: Dostál's theory takes ᾱ ∈ (0, 2 / ‖W‖]; what its decrease estimate uses of that is
+dᵀW d ≤ (2 / ᾱ) dᵀd along the step d taken. So λ is the largest curvature dᵀW d / dᵀd of the
+directions the iteration has met (conjugate-gradient, proportioning and expansion steps; a
+lower bound of ‖W‖, 1 to start with: the unit diagonal), and an expansion whose own step d
+has ᾱ dᵀW d > 2 dᵀd is redone with λ raised to that curvature. Each accepted expansion then
+lowers the quadratic (f(y) − f(y½) = g½ᵀd + ½ dᵀW d ≤ −dᵀd / ᾱ + ½ dᵀW d ≤ 0, d being a
+projected gradient step), and ᾱ is as long as the curvatures met allow, with no estimate of
+‖W‖ beforehand (six power iterations per solve, before; what that saves is in
+benchmarks/results/mprgp_step_length.md); W d is free, the difference of the two gradients. A
+warm start that already meets the tolerance costs one product.
+
+The method is warm-started from the problem's impulses (the last Newton iteration's). Stopping: the
 error of :mod:`compute.contact.residual` in the scene's measure at most ``tolerance``, on the
 iterate (the recurrence's g, recomputed exactly before the stop is accepted), or
 ``max_iterations``; the velocity measures are judged there on the normal part of W r alone,
@@ -55,9 +65,7 @@ from compute.solvers.nlgs import apply_impulses
 from compute.solvers.report import SolveReport
 
 GAMMA = 1.0  # proportioning parameter Γ (Dostál's usual choice)
-EXPANSION = 1.9  # ᾱ ‖W‖: the projected gradient step of an expansion, in (0, 2)
-POWER_ITERATIONS = 6  # of the estimate of ‖W‖ (scaled), which is then raised by NORM_MARGIN
-NORM_MARGIN = 1.2
+EXPANSION = 1.9  # ᾱ λ: the projected gradient step of an expansion, in (0, 2), λ the largest curvature met
 
 
 @dataclass(frozen=True)
@@ -174,40 +182,35 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     (nc,) the diagonal of W_nn;
     ``q`` (nc, 2) the local free velocities (ũ_n, u_t at r = 0); ``r`` (nc, 2) the warm start in
     (r_n used, projected on r_n ≥ 0), the solution out (r_t = 0); (kind, tol, bound) the error
-    measure. Returns the iterations (products with W, the norm estimate's left out)."""
+    measure. Returns the iterations (one product with W each, a redone expansion's left out)."""
     nc = q.shape[0]
     work = _work(op, nc)
     s = np.empty(nc)
     for c in range(nc):
         s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
-    ap = np.empty(nc)
-    p = np.ones(nc)  # power iterations for ‖S W S‖ (unit diagonal: at least 1)
-    norm = 1.0
-    for _ in range(POWER_ITERATIONS):
-        _times(op, s, p, work, ap)
-        size = np.sqrt(np.dot(ap, ap))
-        if size == 0.0:
-            break
-        norm = max(norm, size / np.sqrt(np.dot(p, p)))
-        p = ap / size
-    alpha_bar = EXPANSION / (NORM_MARGIN * norm)
     b = np.empty(nc)  # the scaled q_n
     y = np.empty(nc)
     for c in range(nc):
         b[c] = s[c] * q[c, 0]
         y[c] = max(r[c, 0], 0.0) / s[c]
     g = np.empty(nc)
-    p = np.zeros(nc)
     u = np.zeros((nc, 2))
     w = np.zeros((nc, 2))
     rr = np.zeros((nc, 2))
     size = np.empty(nc)
     mu = np.zeros(nc)
+    _times(op, s, y, work, g)
+    g += b
+    if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or max_iterations <= 0:
+        _unscaled(s, y, r)  # the warm start solves it, judged on the exact g
+        return 0
+    ap = np.empty(nc)
+    norm = 1.0  # the largest curvature met, a lower bound of ‖S W S‖ (unit diagonal: at least 1)
+    alpha_bar = EXPANSION / norm
+    p = np.zeros(nc)
     y_half = np.empty(nc)
     g_half = np.empty(nc)
     d = np.empty(nc)
-    _times(op, s, y, work, g)
-    g += b
     for c in range(nc):
         p[c] = g[c] if y[c] > 0.0 else 0.0
     iterations = 0
@@ -230,6 +233,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
         if beta2 <= GAMMA * GAMMA * phi_tilde_phi:
             _times(op, s, p, work, ap)
             pap = np.dot(p, ap)
+            norm, alpha_bar = _curvature(norm, alpha_bar, pap, np.dot(p, p))
             alpha_cg = np.dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
             alpha_f = np.inf
             for c in range(nc):
@@ -252,15 +256,22 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
                 for c in range(nc):
                     y_half[c] = max(y[c] - alpha_f * p[c], 0.0)
                 g_half[:] = g - alpha_f * ap
-                f_half = 0.5 * np.dot(y_half, g_half + b)  # ½ yᵀ A y + bᵀ y
                 while True:
                     for c in range(nc):
                         y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
                     _times(op, s, y, work, g)
                     g += b
-                    if 0.5 * np.dot(y, g + b) <= f_half or alpha_bar < 1e-12:
+                    dd = 0.0
+                    dad = 0.0
+                    for c in range(nc):
+                        dd += (y[c] - y_half[c]) ** 2
+                        dad += (y[c] - y_half[c]) * (g[c] - g_half[c])
+                    if alpha_bar * dad <= 2.0 * dd:  # within the curvature bound: the step descends
                         break
-                    alpha_bar *= 0.5  # the norm estimate was low: ᾱ too long to descend
+                    known = norm
+                    norm, alpha_bar = _curvature(norm, alpha_bar, dad, dd)  # ᾱ too long: redo it shorter
+                    if norm == known:  # nothing learnt (non-finite values): keep the step, the stop test judges
+                        break
                 for c in range(nc):
                     p[c] = g[c] if y[c] > 0.0 else 0.0
         else:  # proportioning: release contacts along the chopped gradient
@@ -270,12 +281,29 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
             dad = np.dot(d, ap)
             if dad <= 0.0:
                 break
+            norm, alpha_bar = _curvature(norm, alpha_bar, dad, np.dot(d, d))
             alpha = np.dot(g, d) / dad
             y -= alpha * d
             g -= alpha * ap
             for c in range(nc):
                 p[c] = g[c] if y[c] > 0.0 else 0.0
-    for c in range(nc):
+    _unscaled(s, y, r)
+    return iterations
+
+
+@numba.njit(cache=True)
+def _curvature(norm, alpha_bar, dad, dd):
+    """(λ, ᾱ) after a direction d of curvature dᵀAd / dᵀd = ``dad`` / ``dd`` was met: λ the
+    largest curvature so far (a lower bound of ‖A‖), ᾱ = EXPANSION / λ."""
+    if dd > 0.0 and dad > norm * dd:
+        norm = dad / dd
+        return norm, EXPANSION / norm
+    return norm, alpha_bar
+
+
+@numba.njit(cache=True)
+def _unscaled(s, y, r):
+    """The impulses r (nc, 2) = (s y, 0) of the scaled iterate y (nc,)."""
+    for c in range(y.size):
         r[c, 0] = s[c] * y[c]
         r[c, 1] = 0.0
-    return iterations
