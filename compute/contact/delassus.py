@@ -117,7 +117,18 @@ def _group_blocks(dof, hn, ht, diagonal, start, offset, values, n_blocks, keys, 
                 if d >= s0 and d < s0 + s and (K < n_blocks or d == s0):
                     Hg[d - s0, 2 * i] += hn[c, a]
                     Hg[d - s0, 2 * i + 1] += ht[c, a]
-        Wg = Hg.T @ (np.ascontiguousarray(C) @ Hg)
+        CH = np.zeros((s, 2 * k))  # C_G H_G and H_Gᵀ (C_G H_G), summed in a fixed order (compute.fixed_order)
+        for a in range(s):
+            for b in range(s):
+                if C[a, b] != 0.0:
+                    for j in range(2 * k):
+                        CH[a, j] += C[a, b] * Hg[b, j]
+        Wg = np.zeros((2 * k, 2 * k))
+        for a in range(s):
+            for i in range(2 * k):
+                if Hg[a, i] != 0.0:
+                    for j in range(2 * k):
+                        Wg[i, j] += Hg[a, i] * CH[a, j]
         o = out_ptr[q]
         for i in range(k):
             for j in range(k):

@@ -38,6 +38,7 @@ from .body import (
     _area_hessians,
     _assemble_internal,
     _element_stresses,
+    _inverse_2x2,
     _jacobians,
     _sparsity,
     _strain_energy,
@@ -191,7 +192,7 @@ def _batch_reference_gradients(
             f"Jacobian (clockwise or degenerate): {elements[:20].tolist()}"
             + (f" (bodies concerned: {bodies[:20].tolist()})" if bodies.size > 1 else "")
         )
-    dndX = np.einsum("qar,beqrn->beqan", dn_dxi, np.linalg.inv(jac))
+    dndX = np.einsum("qar,beqrn->beqan", dn_dxi, _inverse_2x2(jac, det))
     return np.ascontiguousarray(dndX), rule.weights * det
 
 

@@ -389,8 +389,20 @@ def _reference_gradients(
             f"{bad.size} element(s) with a non-positive reference Jacobian (clockwise or "
             f"degenerate): {bad[:20].tolist()}"
         )
-    dndX = np.einsum("qar,eqrn->eqan", dn_dxi, np.linalg.inv(jac))
+    dndX = np.einsum("qar,eqrn->eqan", dn_dxi, _inverse_2x2(jac, det))
     return np.ascontiguousarray(dndX), rule.weights * det
+
+
+def _inverse_2x2(jac: np.ndarray, det: np.ndarray) -> np.ndarray:
+    """The inverses (..., 2, 2) of the 2x2 matrices ``jac`` (..., 2, 2) with determinants ``det``
+    (...,), by the adjugate. Not np.linalg.inv: LAPACK's last bits depend on the BLAS kernel the
+    processor selects (compute.fixed_order), and these gradients enter every step."""
+    inv = np.empty_like(jac)
+    inv[..., 0, 0] = jac[..., 1, 1] / det
+    inv[..., 0, 1] = -jac[..., 0, 1] / det
+    inv[..., 1, 0] = -jac[..., 1, 0] / det
+    inv[..., 1, 1] = jac[..., 0, 0] / det
+    return inv
 
 
 def _area_hessians(element: ElementType, mean_dilatation: bool) -> np.ndarray:

@@ -46,6 +46,7 @@ import numpy as np
 
 from compute.contact.compliance import add_contact_impulse, block_delassus
 from compute.contact.rows import local_velocity
+from compute.fixed_order import dot, matvec
 from compute.solvers.report import SolveReport
 from compute.solvers.nlgs import apply_impulses, local_signorini_coulomb, stalled
 from compute.contact.residual import Measure, contact_error, relative, squared_error
@@ -103,7 +104,7 @@ def _phi_and_jacobian(W, b, mu, r, phi, J):
     """Alart–Curnier Φ (2k,) and a generalised Jacobian J (2k, 2k) at r (2k,), u = W r + b.
     Returns |Φ|²."""
     n2 = r.shape[0]
-    u = W @ r + b
+    u = matvec(W, r) + b
     J[:, :] = 0.0
     total = 0.0
     for c in range(n2 // 2):
@@ -157,15 +158,15 @@ def _lu_solve(A, b):
                 a[i, k:] -= f * a[k, k:]
                 x[i] -= f * x[k]
     for k in range(n - 1, -1, -1):
-        x[k] = (x[k] - a[k, k + 1:] @ x[k + 1:]) / a[k, k]
+        x[k] = (x[k] - dot(a[k, k + 1:], x[k + 1:])) / a[k, k]
     return x, True
 
 
 @numba.njit(cache=True)
 def _block_error(W, b, mu, r):
     """Natural-map error ‖f‖ / ‖r‖ of the block alone (compute.contact.residual)."""
-    u = W @ r + b
-    size = np.abs(W) @ np.abs(r) + np.abs(b)  # magnitudes of the terms of u
+    u = matvec(W, r) + b
+    size = matvec(np.abs(W), np.abs(r)) + np.abs(b)  # magnitudes of the terms of u
     num = 0.0
     den = 0.0
     for c in range(r.shape[0] // 2):
@@ -205,7 +206,7 @@ def solve_block(W, b, mu, r, tol):
     if err <= tol:
         return err
     for _ in range(FALLBACK_SWEEPS):  # point Gauss–Seidel on the block
-        u = W @ r + b
+        u = matvec(W, r) + b
         for c in range(n2 // 2):
             i, t = 2 * c, 2 * c + 1
             un = u[i] - W[i, i] * r[i] - W[i, t] * r[t]
@@ -245,7 +246,7 @@ def block_gs_solve(order, bstart, wb, woff, dof, hn, ht, W, gap_term, mu, r, v, 
                 mub[i] = mu[c]
                 un, ut = local_velocity(dof, hn, ht, c, v)
                 u[2 * i], u[2 * i + 1] = un + gap_term[c], ut
-            bb = u - Wb @ rb
+            bb = u - matvec(Wb, rb)
             r0 = rb.copy()
             if k == 1:
                 rn, rt = local_signorini_coulomb(Wb[0, 0], Wb[0, 1], Wb[1, 0], Wb[1, 1], bb[0], bb[1], mub[0])

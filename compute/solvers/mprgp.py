@@ -60,6 +60,7 @@ import numpy as np
 
 from compute.contact.delassus import normal_groups, packed_times
 from compute.contact.residual import Measure, local_contact_error
+from compute.fixed_order import dot
 from compute.solvers.interior_point import local_free_velocity
 from compute.solvers.nlgs import apply_impulses
 from compute.solvers.report import SolveReport
@@ -173,27 +174,6 @@ def _error(kind, tol, bound, wnn, s, y, g, q, u, w, r, mu, size):
 
 
 @numba.njit(cache=True)
-def _dot(x, y):
-    """xᵀy for x, y (n,), summed in one fixed order (four interleaved partial sums, then their
-    pairs). Why not np.dot: inside numba it calls the BLAS, whose kernel, chosen at run time for
-    the processor, sums in another order on another processor; the last bits then differ, and a
-    jamming or a frictionless run, whose path amplifies them, ends on another packing
-    (benchmarks/results/machine_determinism.md). numba contracts no a·b + c into a fused
-    multiply-add, so this sum rounds alike on every processor."""
-    n = x.size
-    m = n - n % 4
-    a0 = a1 = a2 = a3 = 0.0
-    for i in range(0, m, 4):
-        a0 += x[i] * y[i]
-        a1 += x[i + 1] * y[i + 1]
-        a2 += x[i + 2] * y[i + 2]
-        a3 += x[i + 3] * y[i + 3]
-    for i in range(m, n):
-        a0 += x[i] * y[i]
-    return (a0 + a1) + (a2 + a3)
-
-
-@numba.njit(cache=True)
 def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     """Minimise ½ r_nᵀ W_nn r_n + q_nᵀ r_n over r_n ≥ 0 (module docstring), in place.
 
@@ -253,9 +233,9 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
                 beta2 += g[c] * g[c]
         if beta2 <= GAMMA * GAMMA * phi_tilde_phi:
             _times(op, s, p, work, ap)
-            pap = _dot(p, ap)
-            norm, alpha_bar = _curvature(norm, alpha_bar, pap, _dot(p, p))
-            alpha_cg = _dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
+            pap = dot(p, ap)
+            norm, alpha_bar = _curvature(norm, alpha_bar, pap, dot(p, p))
+            alpha_cg = dot(g, p) / pap if pap > 0.0 else np.inf  # inf: p in W's null space
             alpha_f = np.inf
             for c in range(nc):
                 if p[c] > 0.0:
@@ -299,11 +279,11 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
             for c in range(nc):
                 d[c] = g[c] if y[c] <= 0.0 and g[c] < 0.0 else 0.0
             _times(op, s, d, work, ap)
-            dad = _dot(d, ap)
+            dad = dot(d, ap)
             if dad <= 0.0:
                 break
-            norm, alpha_bar = _curvature(norm, alpha_bar, dad, _dot(d, d))
-            alpha = _dot(g, d) / dad
+            norm, alpha_bar = _curvature(norm, alpha_bar, dad, dot(d, d))
+            alpha = dot(g, d) / dad
             y -= alpha * d
             g -= alpha * ap
             for c in range(nc):

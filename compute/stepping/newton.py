@@ -55,6 +55,7 @@ import numpy as np
 from compute.contact.compliance import Compliance
 from compute.contact.problem import ContactProblem
 from compute.errors import StepFailure
+from compute.fixed_order import least_squares
 from compute.solvers.report import SolveReport
 from compute.stepping.step_stats import StepStats, carrying
 from compute.timing import TIMES
@@ -189,9 +190,11 @@ def _anderson(history: list, v: np.ndarray, g: np.ndarray) -> np.ndarray:
     if len(history) < 2:
         return g
     f = np.array([gi - vi for vi, gi in history])  # (m + 1, n) residuals
-    gs = np.array([gi for _, gi in history])
-    coef, *_ = np.linalg.lstsq(np.diff(f, axis=0).T, f[-1], rcond=1e-10)
-    out = g - np.diff(gs, axis=0).T @ coef
+    dg = np.diff(np.array([gi for _, gi in history]), axis=0)  # (m, n)
+    coef = least_squares(np.diff(f, axis=0), f[-1], 1e-10)  # fixed-order sums (compute.fixed_order)
+    out = g.copy()
+    for c, d in zip(coef, dg):
+        out -= c * d
     return out if np.all(np.isfinite(out)) else g
 
 
