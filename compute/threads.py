@@ -13,10 +13,11 @@ launch (benchmarks/results/threads.md), which a small group of bodies does not e
 configured number (the 144-disk mixture's 74 soft bodies ran slower on two passive threads
 than on one before this rule: benchmarks/results/design_figures.md).
 
-``configure(n)`` also caps the BLAS pools (OpenBLAS, MKL; threadpoolctl) to n threads. Why: numba's
-``np.dot`` inside the contact kernels calls the OpenBLAS that scipy loads, which threads even a
-dot product of a few thousand entries and whose idle threads busy-wait, taking a core from
-the run beside it (benchmarks/results/threads.md). The study dispatcher's runs had the cap
+``configure(n)`` also caps the BLAS pools (OpenBLAS, MKL; threadpoolctl) to n threads. Why: OpenBLAS
+threads even a dot product of a few thousand entries, and its idle threads busy-wait, taking a
+core from the run beside it (benchmarks/results/threads.md). The contact kernels called it
+through numba's ``np.dot`` until their sums were put in a fixed order (compute.fixed_order);
+the interior-point solvers and the block solver's least-squares step still call it. The study dispatcher's runs had the cap
 already, from the environment it gives them (OPENBLAS_NUM_THREADS); a run started by hand or
 from Python did not. A run given more threads by ``OUT/threads`` (below) keeps its BLAS pool.
 
@@ -61,8 +62,9 @@ def configure(threads: int | None = None, blas: bool = True) -> int:
 
 def _limit_blas(threads: int) -> None:
     """Cap every loaded BLAS pool to ``threads`` (module docstring), scipy's included: numba's
-    kernels call the OpenBLAS of ``scipy.linalg.cython_blas``, which loads only when imported."""
-    import scipy.linalg.cython_blas  # noqa: F401  (loads the BLAS numba's np.dot calls)
+    kernels call the OpenBLAS of ``scipy.linalg.cython_blas`` (the block solver's np.linalg.lstsq),
+    which loads only when imported."""
+    import scipy.linalg.cython_blas  # noqa: F401  (loads the BLAS numba's kernels call)
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=threads, user_api="blas")
