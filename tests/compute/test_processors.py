@@ -5,23 +5,16 @@ frictionless runs below parted within their first steps."""
 
 from __future__ import annotations
 
-import os
-import platform
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from tests.blas_kernels import kernel_environment, needs_openblas_kernels
 from tests.deformable import scenes
 
 KERNELS = ("Prescott", "Haswell")  # SSE3 and AVX2 with fused multiply-adds: two orders of summing
-
-
-def _openblas() -> bool:
-    import threadpoolctl
-
-    return any(i["internal_api"] == "openblas" for i in threadpoolctl.threadpool_info())
 
 
 def _scene(folder: Path, friction: float, solver: str) -> Path:
@@ -41,18 +34,15 @@ def _files(out: Path) -> dict[str, bytes]:
     return {n: (out / n).read_bytes() for n in names}
 
 
-@pytest.mark.skipif(platform.machine() != "x86_64", reason="OpenBLAS core types named for x86-64")
+@needs_openblas_kernels
 @pytest.mark.parametrize("friction, solver", ((0.0, "mprgp"), (0.3, "nlgs_block")))
 def test_a_soft_run_is_the_same_on_every_blas_kernel(tmp_path, friction, solver):
-    if not _openblas():
-        pytest.skip("numpy's BLAS is not OpenBLAS")
     scene = _scene(tmp_path / "scene", friction, solver)
     runs = {}
     for kernel in KERNELS:
-        env = dict(os.environ, OPENBLAS_CORETYPE=kernel, OPENBLAS_NUM_THREADS="1")
         out = tmp_path / kernel
         done = subprocess.run([sys.executable, "-m", "compute", str(scene), "--out", str(out), "--threads", "1"],
-                              env=env, capture_output=True, text=True, timeout=600)
+                              env=kernel_environment(kernel), capture_output=True, text=True, timeout=600)
         assert done.returncode in (0, 1), done.stderr  # 1: a stage not equilibrated in 12 steps
         runs[kernel] = _files(out)
     first, second = (runs[k] for k in KERNELS)

@@ -8,14 +8,13 @@ BLAS too) and solved in child processes, each forced onto another kernel."""
 
 from __future__ import annotations
 
-import os
 import pickle
-import platform
 import subprocess
 import sys
 
 import numpy as np
-import pytest
+
+from tests.blas_kernels import kernel_environment, needs_openblas_kernels
 
 from .problems import random_problem
 
@@ -30,33 +29,19 @@ print(",".join(sorted(kernels)), report.iterations, hashlib.sha256(problem.impul
 """
 
 
-def _openblas() -> bool:
-    import threadpoolctl
-
-    return any(i["internal_api"] == "openblas" for i in threadpoolctl.threadpool_info())
-
-
-@pytest.mark.skipif(platform.machine() != "x86_64", reason="OpenBLAS core types named for x86-64")
+@needs_openblas_kernels
 def test_mprgp_rounds_alike_on_every_blas_kernel(tmp_path):
     """A frictionless problem of 400 contacts (rigid and soft dofs) solved to 1e-12 under
     OpenBLAS's Prescott (SSE3) and Haswell (AVX2) kernels and the processor's own: the same
     iterations and impulses, byte for byte; each child reports the kernel it ran."""
-    import threadpoolctl  # noqa: F401  (the children use it to report their kernel)
-
-    if not _openblas():
-        pytest.skip("numpy's BLAS is not OpenBLAS")
     problem = random_problem(np.random.default_rng(11), "mixed", 400)
     problem.mu[:] = 0.0
     path = tmp_path / "problem.pkl"
     path.write_bytes(pickle.dumps(problem))
     answers = {}
     for kernel in ("Prescott", "Haswell", None):
-        env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-        env.pop("OPENBLAS_CORETYPE", None)
-        if kernel:
-            env["OPENBLAS_CORETYPE"] = kernel
-        r = subprocess.run([sys.executable, "-c", CHILD, str(path)], env=env, capture_output=True, text=True,
-                           timeout=300)
+        r = subprocess.run([sys.executable, "-c", CHILD, str(path)], env=kernel_environment(kernel),
+                           capture_output=True, text=True, timeout=300)
         assert r.returncode == 0, r.stderr
         ran, iterations, digest = r.stdout.split()
         answers[kernel] = (ran, int(iterations), digest)
