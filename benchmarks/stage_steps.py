@@ -3,7 +3,8 @@
 For each run folder (``RUN/out/history.csv`` or ``history.csv.gz``), per pressure stage: the
 steps the stage took, the step from which φ stayed within ``--band`` of the stage's end value
 (what the packing needed; the rest is the stage-end test waiting for the walls and the
-inertial number), the Newton iterations and the cut steps. The figures are counts, not
+inertial number), the Newton iterations, those of the steps after φ entered that band (the
+work a stage-end test that stopped at the band would save) and the cut steps. The figures are counts, not
 timings: they do not depend on what else the machine was doing.
 
 With --seconds, a second table: the wall seconds of each stage, read from the progress lines of
@@ -41,17 +42,19 @@ def read_history(run: Path) -> np.ndarray:
 
 def stage_counts(history: np.ndarray, band: float) -> list[dict]:
     """Per stage: steps, steps until φ stays within ``band`` (absolute) of the stage's last φ,
-    Newton iterations, steps with cuts, and the stage's last φ."""
+    Newton iterations, Newton iterations of the steps after that, steps with cuts, and the
+    stage's last φ."""
     rows = []
     stages = history["stage"].astype(int)
     for s in np.unique(stages):
         h = history[stages == s]
         phi = h["phi"]
         outside = np.flatnonzero(np.abs(phi - phi[-1]) > band)
+        plateau = int(outside[-1] + 1) if len(outside) else 0
+        newton = h["newton_iterations"]
         rows.append({"stage": int(s), "P": float(h["pressure_applied"][-1]), "steps": len(h),
-                     "plateau": int(outside[-1] + 1) if len(outside) else 0,
-                     "newton": int(h["newton_iterations"].sum()), "cut_steps": int(np.count_nonzero(h["cuts"])),
-                     "phi": float(phi[-1])})
+                     "plateau": plateau, "newton": int(newton.sum()), "newton_after": int(newton[plateau:].sum()),
+                     "cut_steps": int(np.count_nonzero(h["cuts"])), "phi": float(phi[-1])})
     return rows
 
 
@@ -90,13 +93,16 @@ def seconds_table(runs: list[Path]) -> str:
 
 def table(runs: list[Path], band: float) -> str:
     lines = [f"Per stage: steps / steps until φ stays within {band:g} of the stage's end φ / Newton "
-             "iterations. Last column: all steps and all Newton iterations of the run.", "",
+             "iterations (of which after those steps). Last column: all steps, all Newton iterations "
+             "and the share of them after each stage's band was entered.", "",
              "| run | " + " | ".join(f"stage {i}" for i in range(7)) + " | run |",
              "|---|" + "---|" * 8]
     for run in runs:
         rows = stage_counts(read_history(run), band)
-        cells = [f"{r['steps']} / {r['plateau']} / {r['newton']}" for r in rows]
-        total = f"{sum(r['steps'] for r in rows)} / {sum(r['newton'] for r in rows)}"
+        cells = [f"{r['steps']} / {r['plateau']} / {r['newton']} ({r['newton_after']})" for r in rows]
+        newton = sum(r["newton"] for r in rows)
+        after = sum(r["newton_after"] for r in rows)
+        total = f"{sum(r['steps'] for r in rows)} / {newton} ({after / max(newton, 1):.0%} after)"
         lines.append(f"| {run.parent.parent.name}/{run.name} | " + " | ".join(cells + [""] * (7 - len(cells)))
                      + f" | {total} |")
     return "\n".join(lines) + "\n"
