@@ -10,6 +10,9 @@ import pytest
 
 
 def _openblas() -> bool:
+    """numpy's BLAS is OpenBLAS (numpy imported first: threadpoolctl sees only loaded libraries,
+    and this runs when a test module is imported)."""
+    import numpy  # noqa: F401
     import threadpoolctl
 
     return any(i["internal_api"] == "openblas" for i in threadpoolctl.threadpool_info())
