@@ -274,9 +274,46 @@ def normal_groups(dof, hn, block, start, offset, values):
 @numba.njit(cache=True)
 def packed_times(tri, n, x, y):
     """y += A x for the symmetric (n, n) A whose upper triangle ``tri`` (n (n + 1) / 2,) is packed
-    row by row; ``x``, ``y`` (n,) (any 1D views). Each value is read once and used twice."""
-    q = 0
-    for i in range(n):
+    row by row (row i's entries j = i .. n - 1 from (2n - i + 1) i / 2); ``x``, ``y`` (n,) (any
+    1D views). Each value is read once and used twice: for row i's sum and for y[j] += A_ij x_i.
+
+    Rows go four at a time: their four sums run side by side over the columns right of the 4 x 4
+    diagonal block, and each y[j] is loaded and stored once for the four. Why: one row at a time,
+    every value waits for the addition before it to its row's sum (a chain of dependent additions,
+    the latency of one per value), which made a product latency-bound; four independent chains
+    take a quarter of that (figures: benchmarks/results/mprgp_product.md). The sums' order is
+    fixed by this code, not by the processor (compute.fixed_order). The last n mod 4 rows go one
+    at a time."""
+    i = 0
+    q = 0  # where row i starts
+    while i + 4 <= n:
+        q0 = q
+        q1 = q0 + n - i
+        q2 = q1 + n - i - 1
+        q3 = q2 + n - i - 2
+        x0, x1, x2, x3 = x[i], x[i + 1], x[i + 2], x[i + 3]
+        a01, a02, a03 = tri[q0 + 1], tri[q0 + 2], tri[q0 + 3]  # the diagonal block, (a, b) at q_a + b - a
+        a12, a13, a23 = tri[q1 + 1], tri[q1 + 2], tri[q2 + 1]
+        s0 = ((tri[q0] * x0 + a01 * x1) + a02 * x2) + a03 * x3
+        s1 = ((a01 * x0 + tri[q1] * x1) + a12 * x2) + a13 * x3
+        s2 = ((a02 * x0 + a12 * x1) + tri[q2] * x2) + a23 * x3
+        s3 = ((a03 * x0 + a13 * x1) + a23 * x2) + tri[q3] * x3
+        for t in range(n - i - 4):  # the columns j = i + 4 .. n - 1
+            j = i + 4 + t
+            u0, u1, u2, u3 = tri[q0 + 4 + t], tri[q1 + 3 + t], tri[q2 + 2 + t], tri[q3 + 1 + t]
+            xj = x[j]
+            s0 += u0 * xj
+            s1 += u1 * xj
+            s2 += u2 * xj
+            s3 += u3 * xj
+            y[j] += (u0 * x0 + u1 * x1) + (u2 * x2 + u3 * x3)
+        y[i] += s0
+        y[i + 1] += s1
+        y[i + 2] += s2
+        y[i + 3] += s3
+        q = q3 + n - i - 3
+        i += 4
+    while i < n:
         xi = x[i]
         acc = tri[q] * xi
         q += 1
@@ -286,3 +323,4 @@ def packed_times(tri, n, x, y):
             acc += a * x[j]
             y[j] += a * xi
         y[i] += acc
+        i += 1

@@ -103,46 +103,37 @@ class MPRGP:
 def _times(op, s, x, work, out):
     """out = S W_nn S x (nc,) for x (nc,), S = diag(s), W_nn given by ``op`` = (dof, hn, diagonal,
     block, start, offset, values, dense, ptr, contacts, woff, wval, coff, cval) in the two forms
-    of :func:`compute.contact.delassus.normal_groups`: through the compliance (packed rows
-    ``dof``, ``hn``; the 1x1 blocks ``diagonal``, the packed triangles ``cval`` of the blocks
-    without their W_G) as a scatter, one product per block and a gather; through the packed W_G
-    for the others, on their contacts gathered. ``work`` = (xs (nc,), hx (n packed dofs,), zero
-    on entry and on return, vx (n,), gx, gy (contacts of the W_G,)) :func:`_work`'s arrays."""
-    dof, hn, diagonal, block, start, offset, values, dense, ptr, contacts, woff, wval, coff, cval = op
-    xs, hx, vx, gx, gy = work
-    nc, m = dof.shape
+    of :func:`compute.contact.delassus.normal_groups`: through the compliance (the 1x1 blocks
+    ``diagonal``, the packed triangles ``cval`` of the blocks without their W_G) as a scatter of
+    the rows' entries onto the dofs, one product per block and a gather; through the packed W_G
+    for the others, on their contacts gathered. ``work``: :func:`_work`'s arrays for ``op`` (hx
+    zero on entry and on return)."""
+    diagonal, start, ptr, contacts, woff, wval, coff, cval = op[2], op[4], op[8], op[9], op[10], op[11], op[12], op[13]
+    xs, hx, vx, gx, gy, eptr, edof, eh, diag_dofs, blocks = work
+    nc = xs.size
     for c in range(nc):
         xs[c] = s[c] * x[c]
-    for c in range(nc):
+    for c in range(nc):  # hx = H_n xs on the dofs applied through the compliance
         if xs[c] != 0.0:
-            for a in range(m):
-                d = dof[c, a]
-                if d >= 0 and (block[d] < 0 or not dense[block[d]]):
-                    hx[d] += hn[c, a] * xs[c]
-    for g in range(dense.size):
-        if not dense[g]:
-            s0, s1 = start[g], start[g + 1]
-            vx[s0:s1] = 0.0
-            packed_times(cval[coff[g]:coff[g + 1]], s1 - s0, hx[s0:s1], vx[s0:s1])
-    for c in range(nc):
+            for e in range(eptr[c], eptr[c + 1]):
+                hx[edof[e]] += eh[e] * xs[c]
+    for d in diag_dofs:  # vx = C hx, zeroing hx behind it
+        vx[d] = diagonal[d] * hx[d]
+        hx[d] = 0.0
+    for g in blocks:
+        s0, s1 = start[g], start[g + 1]
+        vx[s0:s1] = 0.0
+        packed_times(cval[coff[g]:coff[g + 1]], s1 - s0, hx[s0:s1], vx[s0:s1])
+        hx[s0:s1] = 0.0
+    for c in range(nc):  # out = H_nᵀ vx
         u = 0.0
-        for a in range(m):
-            d = dof[c, a]
-            if d >= 0:
-                if block[d] < 0:
-                    u += hn[c, a] * diagonal[d] * hx[d]
-                elif not dense[block[d]]:
-                    u += hn[c, a] * vx[d]
+        for e in range(eptr[c], eptr[c + 1]):
+            u += eh[e] * vx[edof[e]]
         out[c] = u
-    for c in range(nc):
-        for a in range(m):
-            d = dof[c, a]
-            if d >= 0:
-                hx[d] = 0.0
     for i in range(gx.size):
         gx[i] = xs[contacts[i]]
         gy[i] = 0.0
-    for g in range(dense.size):
+    for g in range(ptr.size - 1):
         if ptr[g + 1] > ptr[g]:
             packed_times(wval[woff[g]:woff[g + 1]], ptr[g + 1] - ptr[g], gx[ptr[g]:ptr[g + 1]],
                          gy[ptr[g]:ptr[g + 1]])
@@ -154,10 +145,42 @@ def _times(op, s, x, work, out):
 
 @numba.njit(cache=True)
 def _work(op, nc):
-    """The work arrays of :func:`_times` for ``op`` and ``nc`` contacts."""
-    n = op[2].size  # the packed dofs (the compliance diagonal)
+    """The work arrays of :func:`_times` for ``op`` and ``nc`` contacts: xs (nc,); hx (n packed
+    dofs,) zero, vx (n,); gx, gy (contacts of the W_G,); the rows' entries applied through the
+    compliance, contact c's at eptr[c]:eptr[c + 1] (eptr (nc + 1,)) with their dofs ``edof``
+    and values ``eh`` of H_n; the 1x1-block dofs they touch ``diag_dofs`` and the compliance
+    blocks ``blocks`` (the others are not touched: no product with them). Made once per solve,
+    so that a product reads each entry's route from one list instead of the dofs' blocks."""
+    dof, hn, diagonal, block, dense = op[0], op[1], op[2], op[3], op[7]
+    m = dof.shape[1]
+    n = diagonal.size
+    eptr = np.zeros(nc + 1, np.int64)
+    for c in range(nc):
+        k = 0
+        for a in range(m):
+            d = dof[c, a]
+            if d >= 0 and (block[d] < 0 or not dense[block[d]]):
+                k += 1
+        eptr[c + 1] = eptr[c] + k
+    edof = np.empty(eptr[nc], np.int64)
+    eh = np.empty(eptr[nc])
+    seen_dof = np.zeros(n, np.bool_)
+    seen_block = np.zeros(dense.size, np.bool_)
+    e = 0
+    for c in range(nc):
+        for a in range(m):
+            d = dof[c, a]
+            if d >= 0 and (block[d] < 0 or not dense[block[d]]):
+                edof[e] = d
+                eh[e] = hn[c, a]
+                e += 1
+                if block[d] < 0:
+                    seen_dof[d] = True
+                else:
+                    seen_block[block[d]] = True
     nd = op[9].size  # the contacts of the blocks with their W_G
-    return np.empty(nc), np.zeros(n), np.empty(n), np.empty(nd), np.empty(nd)
+    return (np.empty(nc), np.zeros(n), np.empty(n), np.empty(nd), np.empty(nd), eptr, edof, eh,
+            np.flatnonzero(seen_dof), np.flatnonzero(seen_block))
 
 
 @numba.njit(cache=True)
@@ -245,7 +268,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
             if alpha_cg <= alpha_f:  # conjugate gradient step
                 for c in range(nc):
                     y[c] = max(y[c] - alpha_cg * p[c], 0.0)  # >= 0 but for rounding at alpha_cg = alpha_f
-                g -= alpha_cg * ap
+                    g[c] -= alpha_cg * ap[c]
                 num = 0.0
                 for c in range(nc):
                     if y[c] > 0.0:
@@ -256,7 +279,7 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
             else:  # expansion: to the boundary, then a projected free-gradient step
                 for c in range(nc):
                     y_half[c] = max(y[c] - alpha_f * p[c], 0.0)
-                g_half[:] = g - alpha_f * ap
+                    g_half[c] = g[c] - alpha_f * ap[c]
                 while True:
                     for c in range(nc):
                         y[c] = max(y_half[c] - alpha_bar * g_half[c], 0.0) if y_half[c] > 0.0 else 0.0
@@ -284,8 +307,9 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
                 break
             norm, alpha_bar = _curvature(norm, alpha_bar, dad, dot(d, d))
             alpha = dot(g, d) / dad
-            y -= alpha * d
-            g -= alpha * ap
+            for c in range(nc):
+                y[c] -= alpha * d[c]
+                g[c] -= alpha * ap[c]
             for c in range(nc):
                 p[c] = g[c] if y[c] > 0.0 else 0.0
     _unscaled(s, y, r)

@@ -297,6 +297,25 @@ def test_whole_packing_delassus_is_the_dense_product(kind):
         np.testing.assert_allclose(D.times(r).ravel(), W @ r.ravel(), rtol=0, atol=1e-12 * np.abs(W).max())
 
 
+def test_packed_triangle_product_is_the_dense_product():
+    """packed_times (rows four at a time, the rest one by one) adds A x to y for a symmetric A
+    given by its packed upper triangle: numpy's dense product is the independent answer, for
+    every size up to 13 (every remainder of four, and sizes below four), on strided views as
+    the solver passes them."""
+    from compute.contact.delassus import packed_times
+
+    rng = np.random.default_rng(11)
+    for n in range(14):
+        a = rng.normal(size=(n, n))
+        a = a + a.T
+        tri = a[np.triu_indices(n)]  # row by row: (0, 0), (0, 1), ..., (1, 1), ...
+        x = rng.normal(size=2 * n)[::2]
+        y0 = rng.normal(size=n)
+        y = y0.copy()
+        packed_times(tri, n, x, y)
+        np.testing.assert_allclose(y, y0 + a @ x, rtol=0, atol=1e-13 * max(1.0, np.abs(a).sum()))
+
+
 def test_velocity_error_is_the_velocity_of_the_wrong_impulse():
     """One frictionless rigid contact (W_nn = 2) closing at ũ_n = -1 without impulse: with the
     exact r = 1/2 the error is 0; with r = 1/4 (half of it) the contact still closes at -1/2, a
