@@ -316,6 +316,23 @@ def test_packed_triangle_product_is_the_dense_product():
         np.testing.assert_allclose(y, y0 + a @ x, rtol=0, atol=1e-13 * max(1.0, np.abs(a).sum()))
 
 
+def test_applied_impulses_are_the_dense_compliance_product():
+    """apply_impulses adds M̂⁻¹ H r to v (a block's columns with an impulse four at a time, the
+    rest one by one): the dense C H r of the test's own C and H is the independent answer, with
+    impulses on some contacts only (blocks with 0 to all of their columns touched)."""
+    from compute.solvers.nlgs import apply_impulses
+
+    for seed in range(5):
+        rng = np.random.default_rng(500 + seed)
+        p = bodies_problem(rng, 30)
+        C, H, _, _ = dense_form(p)
+        r = rng.uniform(0.0, 1.0, (len(p), 2)) * (rng.random((len(p), 1)) < 0.6)
+        v0 = rng.normal(size=len(p.compliance))
+        v = v0.copy()
+        apply_impulses(p.dof, p.hn, p.ht, r, v, *p.compliance.arrays())
+        np.testing.assert_allclose(v, v0 + C @ H @ r.ravel(), rtol=0, atol=1e-13 * np.abs(C @ H).sum())
+
+
 def test_velocity_error_is_the_velocity_of_the_wrong_impulse():
     """One frictionless rigid contact (W_nn = 2) closing at ũ_n = -1 without impulse: with the
     exact r = 1/2 the error is 0; with r = 1/4 (half of it) the contact still closes at -1/2, a
