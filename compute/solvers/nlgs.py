@@ -149,8 +149,8 @@ def apply_impulses(dof, hn, ht, r, v, diagonal, block, start, offset, values):
     """v += M̂⁻¹ H r (the warm start): H r gathered per dof first (contacts without impulse cost
     nothing), then each dense block's columns with an impulse added four at a time, each v[i]
     loaded and stored once for the four (column by column, a block's velocities were read and
-    written once per column: 2.7 times the time on a 1500-disk problem, benchmarks/results/mprgp_product.md).
-    The columns of a symmetric block are read as its rows: contiguous."""
+    written once per column; figures in benchmarks/results/mprgp_product.md). The columns of a
+    symmetric block are read as its rows: contiguous."""
     hr = generalised_impulse(dof, hn, ht, r, v.shape[0])
     for d in range(v.shape[0]):
         if block[d] < 0 and hr[d] != 0.0:
