@@ -155,15 +155,8 @@ def _work(op, nc):
     m = dof.shape[1]
     n = diagonal.size
     eptr = np.zeros(nc + 1, np.int64)
-    for c in range(nc):
-        k = 0
-        for a in range(m):
-            d = dof[c, a]
-            if d >= 0 and (block[d] < 0 or not dense[block[d]]):
-                k += 1
-        eptr[c + 1] = eptr[c] + k
-    edof = np.empty(eptr[nc], np.int64)
-    eh = np.empty(eptr[nc])
+    edof = np.empty(nc * m, np.int64)  # at most every entry; the list's end is eptr[nc]
+    eh = np.empty(nc * m)
     seen_dof = np.zeros(n, np.bool_)
     seen_block = np.zeros(dense.size, np.bool_)
     e = 0
@@ -178,6 +171,7 @@ def _work(op, nc):
                     seen_dof[d] = True
                 else:
                     seen_block[block[d]] = True
+        eptr[c + 1] = e
     nd = op[9].size  # the contacts of the blocks with their W_G
     return (np.empty(nc), np.zeros(n), np.empty(n), np.empty(nd), np.empty(nd), eptr, edof, eh,
             np.flatnonzero(seen_dof), np.flatnonzero(seen_block))
