@@ -79,6 +79,17 @@ def squared_error(wnn, un, ut, rn, rt, mu, size):
 
 
 @numba.njit(cache=True, inline="always")
+def squared_normal_error(rho, un, rn, size):
+    """``squared_error`` of a contact without friction and without tangential parts (μ = 0,
+    u_t = r_t = 0), ρ = 1 / W_nn,c given: the cone is the half-line r_n ≥ 0, so
+    f_n = r_n - max(r_n - ρ ũ_n, 0); the same number, without the division and the cone's
+    branches (MPRGP evaluates it at every iteration)."""
+    xn = rn - rho * un
+    fn = rn - (0.0 if xn < 0.0 else xn)  # a NaN goes through, as in project_cone
+    return 0.0 if abs(fn) <= ROUNDING * (rho * size + abs(rn)) else fn * fn
+
+
+@numba.njit(cache=True, inline="always")
 def relative(num, den):
     """sqrt(Σ|f|² / Σ|r|²): 0 when every f is 0, inf when r = 0 but some f is not."""
     if num == 0.0:
@@ -109,25 +120,37 @@ def local_contact_error(kind, tol, bound, wnn, u, w, r, mu, size):
     IMPULSE), ``r`` (nc, 2), ``mu`` (nc,), ``size`` (nc,) the rounding scale of u
     (``squared_error``). With ``bound`` > 0 (an overlap in velocity units, δ / (h θ)) the
     penetration test is folded in: max(error, tol · max_c(-ũ_n,c) / bound)."""
-    num = 0.0
-    den = 0.0
-    top = 0.0
-    scale = 0.0
-    overlap = 0.0
+    sums = (0.0, 0.0, 0.0, 0.0, 0.0)
     for c in range(u.shape[0]):
         e2 = squared_error(wnn[c], u[c, 0], u[c, 1], r[c, 0], r[c, 1], mu[c], size[c])
-        if kind == IMPULSE:
-            num += e2
-            den += r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1]
-        else:
-            s = wnn[c] if wnn[c] > 0.0 else 1.0
-            e2 *= s * s
-            w2 = w[c, 0] * w[c, 0] + w[c, 1] * w[c, 1]
-            num += e2
-            den += w2
-            top = max(top, e2)
-            scale = max(scale, w2)
-        overlap = max(overlap, -u[c, 0])
+        sums = add_contact(kind, sums, e2, wnn[c], r[c, 0] * r[c, 0] + r[c, 1] * r[c, 1],
+                           w[c, 0] * w[c, 0] + w[c, 1] * w[c, 1], u[c, 0])
+    return error_of_sums(kind, tol, bound, sums)
+
+
+@numba.njit(cache=True, inline="always")
+def add_contact(kind, sums, e2, wnn, r2, w2, un):
+    """``sums`` (Σ|f|², Σ|r|² or Σ|w|², max |e|², max |w|², max -ũ_n) with one contact added: its
+    |f_c|² ``e2`` (``squared_error``), W_nn,c, |r_c|², |w_c|² and ũ_n,c (``local_contact_error``)."""
+    num, den, top, scale, overlap = sums
+    if kind == IMPULSE:
+        num += e2
+        den += r2
+    else:
+        s = wnn if wnn > 0.0 else 1.0
+        e2 *= s * s
+        num += e2
+        den += w2
+        top = max(top, e2)
+        scale = max(scale, w2)
+    return num, den, top, scale, max(overlap, -un)
+
+
+@numba.njit(cache=True, inline="always")
+def error_of_sums(kind, tol, bound, sums):
+    """The error of ``kind`` from the ``sums`` of ``add_contact``, the penetration test folded in
+    (``local_contact_error``)."""
+    num, den, top, scale, overlap = sums
     error = relative(top, scale) if kind == VELOCITY_MAX else relative(num, den)
     if bound > 0.0 and overlap > bound:
         error = max(error, tol * overlap / bound)

@@ -59,7 +59,7 @@ import numba
 import numpy as np
 
 from compute.contact.delassus import normal_groups, packed_times
-from compute.contact.residual import Measure, local_contact_error
+from compute.contact.residual import Measure, add_contact, error_of_sums, squared_normal_error
 from compute.fixed_order import dot
 from compute.solvers.interior_point import local_free_velocity
 from compute.solvers.nlgs import apply_impulses
@@ -178,16 +178,18 @@ def _work(op, nc):
 
 
 @numba.njit(cache=True)
-def _error(kind, tol, bound, wnn, s, y, g, q, u, w, r, mu, size):
-    """The measure's error of the scaled iterate y with scaled gradient g (the impulses r_n = s y,
-    ũ_n = g / s); ``u``, ``w``, ``r``, ``size`` (nc, 2), (nc, 2), (nc, 2), (nc,) are work arrays."""
+def _error(kind, tol, bound, wnn, rho, s, y, g, q):
+    """The measure's error (:func:`compute.contact.residual.local_contact_error`) of the scaled
+    iterate y (nc,) with scaled gradient g (nc,): the impulses r_n = s y, ũ_n = g / s, no
+    tangential part; ``rho`` (nc,) 1 / W_nn,c (1 where W_nn,c = 0); one pass, nothing stored."""
+    sums = (0.0, 0.0, 0.0, 0.0, 0.0)
     for c in range(y.size):
         un = g[c] / s[c]
-        r[c, 0] = s[c] * y[c]
-        u[c, 0] = un
-        w[c, 0] = un - q[c, 0]
-        size[c] = abs(q[c, 0]) + abs(un) + abs(q[c, 1])
-    return local_contact_error(kind, tol, bound, wnn, u, w, r, mu, size)
+        rn = s[c] * y[c]
+        e2 = squared_normal_error(rho[c], un, rn, abs(q[c, 0]) + abs(un) + abs(q[c, 1]))
+        w = un - q[c, 0]
+        sums = add_contact(kind, sums, e2, wnn[c], rn * rn, w * w, un)
+    return error_of_sums(kind, tol, bound, sums)
 
 
 @numba.njit(cache=True)
@@ -204,22 +206,19 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
     nc = q.shape[0]
     work = _work(op, nc)
     s = np.empty(nc)
+    rho = np.empty(nc)  # the natural map's scale 1 / W_nn,c (compute.contact.residual)
     for c in range(nc):
         s[c] = 1.0 / np.sqrt(wnn[c]) if wnn[c] > 0.0 else 1.0
+        rho[c] = 1.0 / wnn[c] if wnn[c] > 0.0 else 1.0
     b = np.empty(nc)  # the scaled q_n
     y = np.empty(nc)
     for c in range(nc):
         b[c] = s[c] * q[c, 0]
         y[c] = max(r[c, 0], 0.0) / s[c]
     g = np.empty(nc)
-    u = np.zeros((nc, 2))
-    w = np.zeros((nc, 2))
-    rr = np.zeros((nc, 2))
-    size = np.empty(nc)
-    mu = np.zeros(nc)
     _times(op, s, y, work, g)
     g += b
-    if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or max_iterations <= 0:
+    if _error(kind, tol, bound, wnn, rho, s, y, g, q) <= tol or max_iterations <= 0:
         _unscaled(s, y, r)  # the warm start solves it, judged on the exact g
         return 0
     ap = np.empty(nc)
@@ -233,10 +232,10 @@ def mprgp(op, wnn, q, r, kind, tol, bound, max_iterations):
         p[c] = g[c] if y[c] > 0.0 else 0.0
     iterations = 0
     while True:
-        if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol:
+        if _error(kind, tol, bound, wnn, rho, s, y, g, q) <= tol:
             _times(op, s, y, work, g)  # judge the exact g
             g += b
-            if _error(kind, tol, bound, wnn, s, y, g, q, u, w, rr, mu, size) <= tol or iterations >= max_iterations:
+            if _error(kind, tol, bound, wnn, rho, s, y, g, q) <= tol or iterations >= max_iterations:
                 break
         if iterations >= max_iterations:
             break

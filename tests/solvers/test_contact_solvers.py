@@ -695,3 +695,63 @@ def _forced(chosen, p, c):
 def _dofs_of(p, c, g):
     """(nc, m) whether each entry of the problem's rows is a dof of compliance block g."""
     return (p.dof >= c.start[g]) & (p.dof < c.start[g + 1])
+
+
+def test_mprgp_error_is_the_measure_of_its_impulses():
+    """The error MPRGP stops on, computed in one pass from its scaled iterate and gradient
+    (r_n = s y, ũ_n = g / s), against the measure of the same impulses computed the solvers' way,
+    from the velocities they make (Measure.error): the same number for the impulse measure (with
+    and without the penetration test), which does not see u_t without friction; at least it for
+    the velocity measures, which MPRGP judges on the normal part of W r alone (module docstring
+    of compute.solvers.mprgp)."""
+    from compute.solvers.interior_point import local_free_velocity
+    from compute.solvers.mprgp import _error
+    from compute.solvers.nlgs import apply_impulses
+
+    for seed in range(4):
+        p = bodies_problem(np.random.default_rng(500 + seed), 24)
+        _, _, W, b = dense_form(p)
+        rng = np.random.default_rng(seed)
+        wnn = np.ascontiguousarray(p.W[:, 0, 0])
+        s = 1.0 / np.sqrt(wnn)
+        r = np.where(rng.random(len(p)) < 0.3, 0.0, rng.uniform(0.0, 1.0, len(p)) * np.abs(b).max() / wnn.max())
+        y = r / s
+        g = s * (W[0::2, 0::2] @ r + b[0::2])
+        q = local_free_velocity(p)
+        p.impulse[:] = np.column_stack([r, np.zeros(len(p))])
+        v = p.free_velocity()
+        c = p.compliance
+        apply_impulses(p.dof, p.hn, p.ht, p.impulse, v, *c.arrays())
+        v = p.velocities(v)
+        overlap = max(0.0, -(W[0::2, 0::2] @ r + b[0::2]).min())
+        for kind in ("impulse", "velocity", "velocity_max"):
+            for penetration in (0.0, 0.5 * overlap * p.h_theta):
+                m = Measure(kind, penetration)
+                fused = _error(*m.codes(p, 1e-6), wnn, 1.0 / wnn, s, y, g, q)
+                full = m.error(p, 1e-6, v)
+                assert np.isfinite(full) and full > 0.0, (seed, kind)
+                if kind == "impulse":
+                    np.testing.assert_allclose(fused, full, rtol=1e-10, err_msg=f"{seed} {penetration}")
+                else:
+                    assert fused >= full * (1.0 - 1e-10), (seed, kind, penetration, fused, full)
+
+
+def test_squared_normal_error_is_the_frictionless_squared_error():
+    """The natural map's |f|² of a contact without friction, written for the half-line
+    (compute.contact.residual.squared_normal_error), is squared_error's number with μ = 0,
+    u_t = r_t = 0, to the bit: on closing, separating and touching contacts, rounding-level
+    residuals, r_n = 0, W_nn = 0 (ρ = 1) and a NaN."""
+    from compute.contact.residual import squared_error, squared_normal_error
+
+    rng = np.random.default_rng(7)
+    wnn = np.concatenate([rng.uniform(1e-3, 1e3, 2000), [0.0, 2.0, 2.0, 2.0]])
+    un = np.concatenate([rng.normal(size=2000) * 10.0 ** rng.integers(-15, 2, 2000), [1.0, 0.0, -0.0, np.nan]])
+    rn = np.concatenate([np.where(rng.random(2000) < 0.3, 0.0, rng.uniform(0.0, 2.0, 2000)), [0.5, 0.0, 0.0, 1.0]])
+    rn[:500] = wnn[:500] ** -1.0 * un[:500] * (1.0 + 1e-15 * rng.normal(size=500))  # f at rounding level
+    size = np.abs(un) + rng.uniform(0.0, 1.0, un.size)
+    for c in range(un.size):
+        rho = 1.0 / wnn[c] if wnn[c] > 0.0 else 1.0
+        a = squared_error(wnn[c], un[c], 0.0, rn[c], 0.0, 0.0, size[c])
+        b = squared_normal_error(rho, un[c], rn[c], size[c])
+        assert a == b or (np.isnan(a) and np.isnan(b)), (c, a, b)
+    assert np.isnan(squared_normal_error(0.5, np.nan, 1.0, 1.0))
