@@ -113,10 +113,10 @@ def test_single_particle_default(tmp_path):
 
 # The README's "Results of the small default": the prepared φ₀ per κ (one preparation shared by
 # both frictions), the first stage's φ per (κ, μ), and ξ, α fitted over all runs
-README_MIXTURE_PHI0 = {0.2: "0.8076", 0.5: "0.8036", 0.8: "0.7997", 1.0: "0.7970"}
-README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.8179", (0.2, 0.2): "0.8095", (0.5, 0.0): "0.8159", (0.5, 0.2): "0.8098",
-                            (0.8, 0.0): "0.8162", (0.8, 0.2): "0.8106", (1.0, 0.0): "0.8155", (1.0, 0.2): "0.8115"}
-README_MIXTURE_XI_ALPHA = (9.4, 0.87)
+README_MIXTURE_PHI0 = {0.2: "0.8119", 0.5: "0.8079", 0.8: "0.8039", 1.0: "0.8012"}
+README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.8163", (0.2, 0.2): "0.8149", (0.5, 0.0): "0.8173", (0.5, 0.2): "0.8148",
+                            (0.8, 0.0): "0.8184", (0.8, 0.2): "0.8154", (1.0, 0.0): "0.8191", (1.0, 0.2): "0.8163"}
+README_MIXTURE_XI_ALPHA = (8.5, 0.78)
 # Table 1 of the paper: φ₀ per (κ, μ) and the range of its Z₀
 PAPER_TABLE_PHI0 = {(0.2, 0.0): 0.815, (0.5, 0.0): 0.811, (0.8, 0.0): 0.807, (1.0, 0.0): 0.807,
                     (0.2, 0.2): 0.814, (0.5, 0.2): 0.811, (0.8, 0.2): 0.807, (1.0, 0.2): 0.805}
