@@ -55,9 +55,10 @@ Families (each kernel fills the rows ``dof, hn, ht`` (nc, MAX_DOFS), ``gap``, ``
   the value both formulations approach as the mesh is refined, farther than node rows' φ less
   their overlap. The measurements of all this are in benchmarks/experiments/README.md
   (benchmarks/experiments/segment_gap_linearisation.py, contact_rows_refinement.py).
-- node-segment ``(g, l, s)``: node g against body l, s a hint of the closest segment that the
-  kernel updates in place (it walks along l's loop to the segment at minimum distance, then
-  keeps it if it faces g, see ``facing_segment``);
+- node-segment ``(g, l, s)``: node g against body l, s the segment of the last rows, which the
+  kernel updates in place (it walks along l's loop to the segment at minimum distance, leaving
+  s only for one closer by a margin, see ``closest_segment``, then keeps it if it faces g, see
+  ``facing_segment``);
   gap = (x_g - x_p) . n_out with x_p = (1 - xi) x_b1 + xi x_b2 the closest point of the
   segment (xi clamped to [0, 1]); n = -n_out; dofs (node x, y, b1 x, y, b2 x, y) with weights
   (-1, 1 - xi, xi). The normal's rotation is neglected in u_n (exact at gap = 0).
@@ -67,6 +68,8 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+
+SEGMENT_HYSTERESIS = 1e-3  # a node's segment changes for one closer by this fraction of its length (closest_segment)
 
 
 @numba.njit(cache=True)
@@ -171,17 +174,29 @@ def _segment_distance2(px, py, ax, ay, bx, by):
 @numba.njit(cache=True)
 def closest_segment(px, py, x, loop_nodes, start, n_loop, s):
     """Walk from segment ``s`` of a loop (``loop_nodes[start:start + n_loop]``) to the segment
-    at locally minimum distance from (px, py); returns (segment, squared distance)."""
+    at locally minimum distance from (px, py), moving only to a neighbour closer by more than
+    ``SEGMENT_HYSTERESIS`` times the length of segment ``s``; returns (segment, squared distance).
+
+    Why the margin: a node pressed into another body's polygon at one of its corners sits where
+    the two segments through the corner are about equally far, and which one is closer then
+    changes with motions at the level of round-off at every step, turning the row's normal by
+    the corner's angle (18 degrees on a regular 20-node boundary) and back. In a 1500-disk
+    mixture at high pressure a large share of the active rows did so at every sub-step, and each
+    sub-step's first contact solve spent most of its iterations carrying their impulses over to
+    the turned rows (figures: benchmarks/results/segment_hysteresis.md). What the margin costs: a node held by the kept
+    segment while the other is closer by d <= margin is kept on the kept segment's side of its
+    line, at most d farther out than the closer segment would hold it (never let in deeper)."""
     s = s % n_loop
     a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
     best, _ = _segment_distance2(px, py, x[a, 0], x[a, 1], x[b, 0], x[b, 1])
+    margin = SEGMENT_HYSTERESIS * np.sqrt((x[b, 0] - x[a, 0]) ** 2 + (x[b, 1] - x[a, 1]) ** 2)
     for _ in range(n_loop):
         moved = False
         for step in (-1, 1):
             t = (s + step) % n_loop
             a, b = loop_nodes[start + t], loop_nodes[start + (t + 1) % n_loop]
             d2, _ = _segment_distance2(px, py, x[a, 0], x[a, 1], x[b, 0], x[b, 1])
-            if d2 < best:
+            if np.sqrt(d2) < np.sqrt(best) - margin:
                 best, s, moved = d2, t, True
                 break
         if not moved:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from compute.contact.rows import ContactRows
-from compute.contact.soft_rows import node_segment_rows
+from compute.contact.soft_rows import SEGMENT_HYSTERESIS, node_segment_rows
 from compute.model import loop_neighbours
 
 
@@ -62,3 +62,43 @@ def test_facing_faces_keep_the_closest_segment(shift):
     np.testing.assert_allclose(c.normal, np.tile([1.0, 0.0], (len(nodes), 1)), atol=1e-12)
     np.testing.assert_allclose(c.gap, 0.01, rtol=1e-9)
     assert set(cand[:, 2]) <= {6, 7}  # body 1's left side: nodes 6 -> 7 -> 0
+
+
+def corner_pair(node):
+    """Body 0 = [0, 1]², whose corner (1, 1) joins its right side (segment 3, nodes (1, 0.5) ->
+    (1, 1), outward normal (1, 0)) and its top (segment 4, (1, 1) -> (0.5, 1), normal (0, 1));
+    body 1 = a unit square whose bottom-left corner node (global node 8) is at ``node``, so that
+    both segments face it."""
+    x = np.vstack([square_loop(0.0, 0.0), square_loop(*node)])
+    return x, [np.arange(8), 8 + np.arange(8)]
+
+
+@pytest.mark.parametrize("hint, side", [(3, -1.0), (4, 1.0)])
+def test_a_node_at_a_corner_keeps_its_segment_across_the_bisector(hint, side):
+    """A node pressed 1e-7 into body 0's corner, 1e-9 to one side of the bisector, where the other
+    segment is the closer one by 2e-9: the segment of the last rows (the hint) is kept, with its
+    normal and its own penetration, -(1e-7 + 1e-9). Switching there at every step is what the
+    margin of closest_segment prevents: without it, the row's normal turns by 90 degrees here."""
+    e, d = 1e-7, side * 1e-9
+    x, loops = corner_pair((1.0 - e + d, 1.0 - e - d))
+    cand = np.array([[8, 0, hint]], np.int64)
+    c = rows(x, loops, cand)
+    assert cand[0, 2] == hint
+    normal = {3: [-1.0, 0.0], 4: [0.0, -1.0]}[hint]
+    np.testing.assert_allclose(c.normal[0], normal, atol=1e-12)
+    np.testing.assert_allclose(c.gap[0], -(e + abs(d)), rtol=1e-6)
+
+
+@pytest.mark.parametrize("s, segment, gap", [(0.2 * SEGMENT_HYSTERESIS, 4, -0.2 * SEGMENT_HYSTERESIS),
+                                             (2.0 * SEGMENT_HYSTERESIS, 3, 0.0)])
+def test_a_node_sliding_round_a_corner_changes_segment_past_the_margin(s, segment, gap):
+    """A node on body 0's right side a distance ``s`` below the corner, its last segment the top
+    one (4): that segment is kept while the right side is closer by less than the margin
+    (SEGMENT_HYSTERESIS x the top's length 0.5), and its row then reads a penetration of s, at most
+    the margin, where the node touches the right side; past the margin the node goes over to
+    the right side (3), normal (-1, 0), gap 0."""
+    x, loops = corner_pair((1.0, 1.0 - s))
+    cand = np.array([[8, 0, 4]], np.int64)
+    c = rows(x, loops, cand)
+    assert cand[0, 2] == segment
+    np.testing.assert_allclose(c.gap[0], gap, atol=1e-15)
