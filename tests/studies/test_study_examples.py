@@ -115,7 +115,7 @@ def test_single_particle_default(tmp_path):
 # both frictions), the first stage's φ per (κ, μ), and ξ, α fitted over all runs
 README_MIXTURE_PHI0 = {0.2: "0.8119", 0.5: "0.8079", 0.8: "0.8039", 1.0: "0.8012"}
 README_MIXTURE_PHI_FIRST = {(0.2, 0.0): "0.8163", (0.2, 0.2): "0.8149", (0.5, 0.0): "0.8173", (0.5, 0.2): "0.8148",
-                            (0.8, 0.0): "0.8184", (0.8, 0.2): "0.8154", (1.0, 0.0): "0.8191", (1.0, 0.2): "0.8163"}
+                            (0.8, 0.0): "0.8187", (0.8, 0.2): "0.8154", (1.0, 0.0): "0.8191", (1.0, 0.2): "0.8163"}
 README_MIXTURE_XI_ALPHA = (8.5, 0.78)
 # Table 1 of the paper: φ₀ per (κ, μ) and the range of its Z₀
 PAPER_TABLE_PHI0 = {(0.2, 0.0): 0.815, (0.5, 0.0): 0.811, (0.8, 0.0): 0.807, (1.0, 0.0): 0.807,
