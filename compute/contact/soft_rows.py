@@ -179,13 +179,14 @@ def closest_segment(px, py, x, loop_nodes, start, n_loop, s):
 
     Why the margin: a node pressed into another body's polygon at one of its corners sits where
     the two segments through the corner are about equally far, and which one is closer then
-    changes with motions at the level of round-off at every step, turning the row's normal by
-    the corner's angle (18 degrees on a regular 20-node boundary) and back. In a 1500-disk
-    mixture at high pressure a large share of the active rows did so at every sub-step, and each
-    sub-step's first contact solve spent most of its iterations carrying their impulses over to
-    the turned rows (figures: benchmarks/results/segment_hysteresis.md). What the margin costs: a node held by the kept
-    segment while the other is closer by d <= margin is kept on the kept segment's side of its
-    line, at most d farther out than the closer segment would hold it (never let in deeper)."""
+    changes with the smallest motions, at every step, turning the row's normal by the corner's
+    angle (18 degrees on a regular 20-node boundary) and back. In a 1500-disk mixture at high
+    pressure many of the rows with an impulse did so at every sub-step, and each sub-step's first
+    contact solve spent most of its iterations moving their impulses onto the turned rows
+    (figures: benchmarks/results/segment_hysteresis.md). What the margin costs: a node held by
+    the kept segment while the other is closer by d <= margin is kept on the kept segment's side
+    of its line, at most d farther out than the closer segment would hold it (at a convex
+    corner; never let in deeper there)."""
     s = s % n_loop
     a, b = loop_nodes[start + s], loop_nodes[start + (s + 1) % n_loop]
     best, _ = _segment_distance2(px, py, x[a, 0], x[a, 1], x[b, 0], x[b, 1])
