@@ -7,7 +7,12 @@ zero weight is no change, and a node that went over to the neighbouring segment 
 body (the normal turned by the corner's angle) is a change of order one. Only consecutive
 problems with the same rows (the same candidates) are compared; within a Newton loop the rows
 stay, so the lines printed are the sub-steps' first problems. One line per such pair: the rows
-changed by more than 1e-3, 1e-2 and 0.1, and of the last, those that held an impulse.
+changed by more than 1e-3, 1e-2 and 0.1, and of the last, those that held an impulse; how many
+of them had changed by more than 0.1 at the pair before too, and of those how many are back to
+the operator they had two problems before, within 0.1 (a row going over and back); and, for the changed
+node–segment rows (6 dofs, weights (-1, 1 - ξ, ξ) on the node and the segment's ends), the
+median and the 90th percentile of min(ξ, 1 - ξ), the node's distance from the segment's
+corner along it.
 
     python benchmarks/contact_problems.py export --run RUN --stage 7 --count 12 --warm --file P/p.npz
     python benchmarks/segment_changes.py P/p_*.npz
@@ -43,20 +48,43 @@ def row_changes(a, b) -> np.ndarray:
     return np.asarray(abs(diff).sum(axis=1)).ravel()
 
 
+def corner_distance(problem) -> np.ndarray:
+    """min(ξ, 1 - ξ) (nc,) of the node–segment rows with both ends weighted (their six dofs
+    set, none beyond; NaN for the other rows): ξ from the weights of the segment's two ends,
+    |hn| of each over their sum."""
+    w1 = np.hypot(problem.hn[:, 2], problem.hn[:, 3])
+    w2 = np.hypot(problem.hn[:, 4], problem.hn[:, 5])
+    six = np.all(problem.dof[:, :6] >= 0, axis=1) & np.all(problem.dof[:, 6:] < 0, axis=1)
+    xi = w2 / np.where(six, w1 + w2, 1.0)
+    return np.where(six, np.minimum(xi, 1.0 - xi), np.nan)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+", type=Path)
     a = ap.parse_args()
-    previous = None
-    for i, path in enumerate(sorted(a.files)):
+    before = previous = None  # the last two problems compared, and the rows that changed last
+    changed_last = None
+    for path in sorted(a.files):
         problem, _ = load(path)
         if previous is not None and len(previous) == len(problem):
             change = row_changes(previous, problem)
             if np.any(change > 0.0):
                 held = previous.impulse[:, 0] > 0.0
+                turned = change > THRESHOLDS[-1]
                 counts = " ".join(f"> {t:g}: {int(np.sum(change > t))}" for t in THRESHOLDS)
-                print(f"{path.name}: {len(problem)} rows, {int(held.sum())} with an impulse; changed {counts} "
-                      f"(with an impulse: {int(np.sum((change > THRESHOLDS[-1]) & held))})")
+                line = (f"{path.name}: {len(problem)} rows, {int(held.sum())} with an impulse; changed {counts} "
+                        f"(with an impulse: {int(np.sum(turned & held))})")
+                if changed_last is not None and len(before) == len(problem):
+                    again = turned & changed_last
+                    back = again & (row_changes(before, problem) <= THRESHOLDS[-1])
+                    line += f"; changed at the pair before too: {int(again.sum())}, back: {int(back.sum())}"
+                d = corner_distance(previous)[turned]
+                d = d[np.isfinite(d)]
+                if d.size:
+                    line += f"; min(xi, 1 - xi) median {np.median(d):.2g}, 90 % {np.quantile(d, 0.9):.2g}"
+                print(line)
+                before, changed_last = previous, turned
         previous = problem
 
 
